@@ -1,0 +1,527 @@
+"""Compiled (numba) kernels of the coupled model: right-hand side, Jacobian blocks, linear solver.
+
+Private module: only :mod:`gfb_env.model` and :mod:`gfb_env.integrator` call it, through
+:class:`gfb_env.model.StateLayout`, which owns the state ordering these kernels assume:
+
+    s = [P_00 .. P_0,nr-1, P_10 .. P_nc-1,nr-1,   (nc*nr interior pressures, phi-major)
+         Q_0 .. Q_nc-1,                           (foil deflection, viscoelastic model only)
+         xi, eta, xi', eta']                      (rotor, Cartesian)
+
+Discretisation of Eq. (4) on nc periodic columns (dphi = 2 pi / nc) and nr interior rows
+(dZ = 1 / (nr + 1), P = 1 on the edges Z = +-1/2), flux-conservative central differences with
+P H^3 dP/dphi = H^3 d(P^2/2)/dphi:
+
+    R_ij = a [W_{i+1/2} (P_{i+1,j}^2 - P_ij^2) - W_{i-1/2} (P_ij^2 - P_{i-1,j}^2)]
+         + b H_i^3 (P_{i,j+1}^2 - 2 P_ij^2 + P_{i,j-1}^2)
+         - c (P_{i+1,j} H_{i+1} - P_{i-1,j} H_{i-1}),
+    a = 1 / (4 dphi^2),  b = kappa^2 / (4 dZ^2),  c = Lambda / (4 dphi),  W_{i+1/2} = ((H_i + H_{i+1})/2)^3
+
+and per column  H_i P'_ij + P_ij H'_i = R_ij,  H'_i = -xi' sin(phi_i) - eta' cos(phi_i) - Q'_i.
+
+The Jacobian is stored as blocks over "column unknowns" x_i = [P_i0 .. P_i,nr-1, (Q_i)] of size m:
+``Ad[i] = dk_i/dx_i``, ``Ap[i] = dk_i/dx_{i+1}``, ``Am[i] = dk_i/dx_{i-1}``, ``Er[i] = dk_i/d rotor``,
+``Rr[i] = dk_rotor/dx_i`` and ``Srr = dk_rotor/d rotor`` (a periodic block-tridiagonal matrix with a
+border of four rotor unknowns).  :func:`factor_system` factors ``I - hh J`` by block-Thomas elimination
+of columns 1..nc-1 with column 0 and the rotor as a border (a Schur complement of size m + 4).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+RIGID = 0
+ELASTIC = 1
+VISCOELASTIC = 2
+
+# Integer and float parameter vectors (kept as arrays so that compiled signatures stay small).
+# ip = [nc, nr, structure]; fp = [foil_stiffness, kappa, mass, gravity]
+_NC, _NR, _STRUCT = 0, 1, 2
+_KW, _KAPPA, _MASS, _GRAV = 0, 1, 2, 3
+
+
+@njit(cache=True)
+def film_thickness(s, ip, fp, sn, cs, H):
+    """Film thickness H_i per column; returns its minimum."""
+    nc = ip[_NC]
+    nr = ip[_NR]
+    st = ip[_STRUCT]
+    kw = fp[_KW]
+    npres = nc * nr
+    r0 = npres + (nc if st == VISCOELASTIC else 0)
+    xi = s[r0]
+    eta = s[r0 + 1]
+    dz = 1.0 / (nr + 1)
+    hmin = np.inf
+    for i in range(nc):
+        q = 0.0
+        if st == VISCOELASTIC:
+            q = s[npres + i]
+        elif st == ELASTIC:
+            acc = 0.0
+            for j in range(nr):
+                acc += s[i * nr + j]
+            q = -dz * (acc - nr) / kw
+        H[i] = 1.0 - xi * sn[i] - eta * cs[i] - q
+        if H[i] < hmin:
+            hmin = H[i]
+    return hmin
+
+
+@njit(cache=True)
+def rhs(s, lam, dw, ip, fp, sn, cs, out, H, Hd):
+    """k(s, Lambda, D_W) of Eq. (14) into ``out``; H and H' per column into ``H``, ``Hd``.
+
+    Returns min(min H, min P): callers treat a non-positive value as an inadmissible state.
+    """
+    nc = ip[_NC]
+    nr = ip[_NR]
+    st = ip[_STRUCT]
+    kw = fp[_KW]
+    kappa = fp[_KAPPA]
+    mass = fp[_MASS]
+    grav = fp[_GRAV]
+    npres = nc * nr
+    r0 = npres + (nc if st == VISCOELASTIC else 0)
+    dphi = 2.0 * math.pi / nc
+    dz = 1.0 / (nr + 1)
+    a = 1.0 / (4.0 * dphi * dphi)
+    b = kappa * kappa / (4.0 * dz * dz)
+    c = lam / (4.0 * dphi)
+    ce = dz / kw
+    hmin = film_thickness(s, ip, fp, sn, cs, H)
+    u = s[r0 + 2]
+    v = s[r0 + 3]
+    fxi = 0.0
+    feta = 0.0
+    pmin = np.inf
+    for i in range(nc):
+        ip1 = i + 1 if i + 1 < nc else 0
+        im1 = i - 1 if i > 0 else nc - 1
+        hi = H[i]
+        hp = H[ip1]
+        hm = H[im1]
+        wp = 0.125 * (hi + hp) ** 3
+        wm = 0.125 * (hi + hm) ** 3
+        hi3 = hi * hi * hi
+        ar = -u * sn[i] - v * cs[i]
+        ssum = 0.0
+        colf = 0.0
+        for j in range(nr):
+            k = i * nr + j
+            p = s[k]
+            pp = s[ip1 * nr + j]
+            pm = s[im1 * nr + j]
+            pn = s[k + 1] if j < nr - 1 else 1.0
+            ps = s[k - 1] if j > 0 else 1.0
+            p2 = p * p
+            r = (
+                a * (wp * (pp * pp - p2) - wm * (p2 - pm * pm))
+                + b * hi3 * (pn * pn - 2.0 * p2 + ps * ps)
+                - c * (pp * hp - pm * hm)
+            )
+            out[k] = r - p * ar
+            ssum += p
+            colf += p - 1.0
+            if p < pmin:
+                pmin = p
+        fxi += colf * sn[i]
+        feta += colf * cs[i]
+        if st == RIGID:
+            Hd[i] = ar
+            for j in range(nr):
+                out[i * nr + j] /= hi
+        elif st == VISCOELASTIC:
+            qd = -(kw * s[npres + i] + dz * (1.0 + ssum) - 1.0) / dw
+            out[npres + i] = qd
+            Hd[i] = ar - qd
+            for j in range(nr):
+                k = i * nr + j
+                out[k] = (out[k] + s[k] * qd) / hi
+        else:
+            sb = 0.0
+            for j in range(nr):
+                sb += out[i * nr + j]
+            sig = sb / (hi + ce * ssum)
+            Hd[i] = ar + ce * sig
+            for j in range(nr):
+                k = i * nr + j
+                out[k] = (out[k] - ce * s[k] * sig) / hi
+    scale = dphi * dz
+    out[r0] = u
+    out[r0 + 1] = v
+    out[r0 + 2] = -fxi * scale / mass
+    out[r0 + 3] = grav - feta * scale / mass
+    return min(hmin, pmin)
+
+
+@njit(cache=True)
+def jacobian_blocks(s, lam, dw, ip, fp, sn, cs, F, H, Hd, Ad, Ap, Am, Er, Rr, Srr):
+    """Analytic Jacobian of :func:`rhs` as blocks (see the module docstring).  Also fills F = k(s)."""
+    nc = ip[_NC]
+    nr = ip[_NR]
+    st = ip[_STRUCT]
+    kw = fp[_KW]
+    kappa = fp[_KAPPA]
+    mass = fp[_MASS]
+    npres = nc * nr
+    r0 = npres + (nc if st == VISCOELASTIC else 0)
+    dphi = 2.0 * math.pi / nc
+    dz = 1.0 / (nr + 1)
+    a = 1.0 / (4.0 * dphi * dphi)
+    b = kappa * kappa / (4.0 * dz * dz)
+    c = lam / (4.0 * dphi)
+    ce = dz / kw
+    rhs(s, lam, dw, ip, fp, sn, cs, F, H, Hd)
+    Ad[:] = 0.0
+    Ap[:] = 0.0
+    Am[:] = 0.0
+    Er[:] = 0.0
+    Rr[:] = 0.0
+    Srr[:] = 0.0
+    m = Ad.shape[1]
+    dRdH0 = np.empty(nr)
+    dRdHp = np.empty(nr)
+    dRdHm = np.empty(nr)
+    g = np.empty(nr)
+    scale = dphi * dz / mass
+    for i in range(nc):
+        ip1 = i + 1 if i + 1 < nc else 0
+        im1 = i - 1 if i > 0 else nc - 1
+        hi = H[i]
+        hp = H[ip1]
+        hm = H[im1]
+        wp = 0.125 * (hi + hp) ** 3
+        wm = 0.125 * (hi + hm) ** 3
+        dwp = 0.375 * (hi + hp) ** 2
+        dwm = 0.375 * (hi + hm) ** 2
+        hi3 = hi * hi * hi
+        hdi = Hd[i]
+        ssum = 0.0
+        # direct derivatives of R (P stencil) and dR/dH, column-block rows j
+        for j in range(nr):
+            k = i * nr + j
+            p = s[k]
+            pp = s[ip1 * nr + j]
+            pm = s[im1 * nr + j]
+            pn = s[k + 1] if j < nr - 1 else 1.0
+            ps = s[k - 1] if j > 0 else 1.0
+            p2 = p * p
+            ssum += p
+            dRdH0[j] = a * (dwp * (pp * pp - p2) - dwm * (p2 - pm * pm)) + 3.0 * b * hi * hi * (
+                pn * pn - 2.0 * p2 + ps * ps
+            )
+            dRdHp[j] = a * dwp * (pp * pp - p2) - c * pp
+            dRdHm[j] = -a * dwm * (p2 - pm * pm) + c * pm
+            Ad[i, j, j] = -2.0 * a * p * (wp + wm) - 4.0 * b * hi3 * p - hdi
+            if j < nr - 1:
+                Ad[i, j, j + 1] = 2.0 * b * hi3 * pn
+            if j > 0:
+                Ad[i, j, j - 1] = 2.0 * b * hi3 * ps
+            Ap[i, j, j] = 2.0 * a * wp * pp - c * hp
+            Am[i, j, j] = 2.0 * a * wm * pm + c * hm
+            # rotor columns of g: xi, eta, xi', eta'
+            Er[i, j, 0] = -(dRdH0[j] * sn[i] + dRdHp[j] * sn[ip1] + dRdHm[j] * sn[im1]) + F[k] * sn[i]
+            Er[i, j, 1] = -(dRdH0[j] * cs[i] + dRdHp[j] * cs[ip1] + dRdHm[j] * cs[im1]) + F[k] * cs[i]
+            Er[i, j, 2] = p * sn[i]
+            Er[i, j, 3] = p * cs[i]
+        if st == VISCOELASTIC:
+            for j in range(nr):
+                p = s[i * nr + j]
+                for l in range(nr):
+                    Ad[i, j, l] -= p * dz / dw
+                Ad[i, j, nr] = -dRdH0[j] + F[i * nr + j] - p * kw / dw
+                Ap[i, j, nr] = -dRdHp[j]
+                Am[i, j, nr] = -dRdHm[j]
+            for l in range(nr):
+                Ad[i, nr, l] = -dz / dw
+            Ad[i, nr, nr] = -kw / dw
+        elif st == ELASTIC:
+            for j in range(nr):
+                fj = F[i * nr + j]
+                for l in range(nr):
+                    Ad[i, j, l] += (dRdH0[j] - fj) * ce
+                    Ap[i, j, l] += dRdHp[j] * ce
+                    Am[i, j, l] += dRdHm[j] * ce
+        # divide by H (rigid, viscoelastic) or apply the Sherman-Morrison inverse (elastic)
+        if st == ELASTIC:
+            den = hi + ce * ssum
+            for blk in range(3):
+                for l in range(m):
+                    sg = 0.0
+                    for j in range(nr):
+                        if blk == 0:
+                            g[j] = Ad[i, j, l]
+                        elif blk == 1:
+                            g[j] = Ap[i, j, l]
+                        else:
+                            g[j] = Am[i, j, l]
+                        sg += g[j]
+                    corr = ce * sg / den
+                    for j in range(nr):
+                        val = (g[j] - s[i * nr + j] * corr) / hi
+                        if blk == 0:
+                            Ad[i, j, l] = val
+                        elif blk == 1:
+                            Ap[i, j, l] = val
+                        else:
+                            Am[i, j, l] = val
+            for l in range(4):
+                sg = 0.0
+                for j in range(nr):
+                    sg += Er[i, j, l]
+                corr = ce * sg / den
+                for j in range(nr):
+                    Er[i, j, l] = (Er[i, j, l] - s[i * nr + j] * corr) / hi
+        else:
+            for j in range(nr):
+                for l in range(m):
+                    Ad[i, j, l] /= hi
+                    Ap[i, j, l] /= hi
+                    Am[i, j, l] /= hi
+                for l in range(4):
+                    Er[i, j, l] /= hi
+        for j in range(nr):
+            Rr[i, 2, j] = -scale * sn[i]
+            Rr[i, 3, j] = -scale * cs[i]
+    Srr[0, 2] = 1.0
+    Srr[1, 3] = 1.0
+
+
+# ------------------------------------------------------------------------------------------------
+# small dense LU with partial pivoting (m <= ~12: loops beat LAPACK call overhead)
+@njit(cache=True)
+def _lu(A, piv):
+    n = A.shape[0]
+    for k in range(n):
+        p = k
+        amax = abs(A[k, k])
+        for r in range(k + 1, n):
+            if abs(A[r, k]) > amax:
+                amax = abs(A[r, k])
+                p = r
+        piv[k] = p
+        if amax == 0.0:
+            return False
+        if p != k:
+            for cidx in range(n):
+                tmp = A[k, cidx]
+                A[k, cidx] = A[p, cidx]
+                A[p, cidx] = tmp
+        inv = 1.0 / A[k, k]
+        for r in range(k + 1, n):
+            A[r, k] *= inv
+            f = A[r, k]
+            if f != 0.0:
+                for cidx in range(k + 1, n):
+                    A[r, cidx] -= f * A[k, cidx]
+    return True
+
+
+@njit(cache=True)
+def _lu_solve(LU, piv, x):
+    n = LU.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            tmp = x[k]
+            x[k] = x[p]
+            x[p] = tmp
+    for r in range(n):
+        acc = x[r]
+        for cidx in range(r):
+            acc -= LU[r, cidx] * x[cidx]
+        x[r] = acc
+    for r in range(n - 1, -1, -1):
+        acc = x[r]
+        for cidx in range(r + 1, n):
+            acc -= LU[r, cidx] * x[cidx]
+        x[r] = acc / LU[r, r]
+
+
+@njit(cache=True)
+def _lu_solve_mat(LU, piv, X):
+    n = LU.shape[0]
+    ncol = X.shape[1]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            for q in range(ncol):
+                tmp = X[k, q]
+                X[k, q] = X[p, q]
+                X[p, q] = tmp
+    for q in range(ncol):
+        for r in range(n):
+            acc = X[r, q]
+            for cidx in range(r):
+                acc -= LU[r, cidx] * X[cidx, q]
+            X[r, q] = acc
+        for r in range(n - 1, -1, -1):
+            acc = X[r, q]
+            for cidx in range(r + 1, n):
+                acc -= LU[r, cidx] * X[cidx, q]
+            X[r, q] = acc / LU[r, r]
+
+
+@njit(cache=True)
+def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv):
+    """Factor ``I - hh J`` (J in blocks).  Returns False if a pivot vanishes."""
+    nc = Ad.shape[0]
+    m = Ad.shape[1]
+    nb = m + 4
+    last = nc - 1
+    # block-Thomas forward sweep over columns 1..nc-1
+    for i in range(1, nc):
+        for r in range(m):
+            for q in range(m):
+                Dlu[i, r, q] = -hh * Ad[i, r, q]
+            Dlu[i, r, r] += 1.0
+        if i > 1:
+            # D_i -= L_i Uhat_{i-1},  L_i = -hh Am[i]
+            for r in range(m):
+                for q in range(m):
+                    acc = 0.0
+                    for t in range(m):
+                        acc += Am[i, r, t] * Uhat[i - 1, t, q]
+                    Dlu[i, r, q] += hh * acc
+        if not _lu(Dlu[i], Dpiv[i]):
+            return False
+        if i < last:
+            for r in range(m):
+                for q in range(m):
+                    Uhat[i, r, q] = -hh * Ap[i, r, q]
+            _lu_solve_mat(Dlu[i], Dpiv[i], Uhat[i])
+    # Y = T^{-1} W
+    for i in range(1, nc):
+        for r in range(m):
+            for q in range(nb):
+                Y[i, r, q] = 0.0
+            for q in range(4):
+                Y[i, r, m + q] = -hh * Er[i, r, q]
+        if i == 1:
+            for r in range(m):
+                for q in range(m):
+                    Y[i, r, q] += -hh * Am[1, r, q]
+        if i == last:
+            for r in range(m):
+                for q in range(m):
+                    Y[i, r, q] += -hh * Ap[last, r, q]
+        if i > 1:
+            for r in range(m):
+                for q in range(nb):
+                    acc = 0.0
+                    for t in range(m):
+                        acc += Am[i, r, t] * Y[i - 1, t, q]
+                    Y[i, r, q] += hh * acc
+        _lu_solve_mat(Dlu[i], Dpiv[i], Y[i])
+    for i in range(last - 1, 0, -1):
+        for r in range(m):
+            for q in range(nb):
+                acc = 0.0
+                for t in range(m):
+                    acc += Uhat[i, r, t] * Y[i + 1, t, q]
+                Y[i, r, q] -= acc
+    # Schur complement on the border [x_0, rotor]
+    for r in range(nb):
+        for q in range(nb):
+            Slu[r, q] = 0.0
+    for r in range(m):
+        for q in range(m):
+            Slu[r, q] = -hh * Ad[0, r, q]
+        Slu[r, r] += 1.0
+        for q in range(4):
+            Slu[r, m + q] = -hh * Er[0, r, q]
+    for r in range(4):
+        for q in range(m):
+            Slu[m + r, q] = -hh * Rr[0, r, q]
+        for q in range(4):
+            Slu[m + r, m + q] = -hh * Srr[r, q]
+        Slu[m + r, m + r] += 1.0
+    for r in range(m):
+        for q in range(nb):
+            acc = 0.0
+            for t in range(m):
+                acc += Ap[0, r, t] * Y[1, t, q] + Am[0, r, t] * Y[last, t, q]
+            Slu[r, q] += hh * acc
+    for r in range(4):
+        for q in range(nb):
+            acc = 0.0
+            for i in range(1, nc):
+                for t in range(m):
+                    acc += Rr[i, r, t] * Y[i, t, q]
+            Slu[m + r, q] += hh * acc
+    return _lu(Slu, Spiv)
+
+
+@njit(cache=True)
+def solve_system(hh, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, rhs_vec, x, zb):
+    """Solve ``(I - hh J) x = rhs_vec`` with the factors of :func:`factor_system`.
+
+    ``rhs_vec`` and ``x`` are in state layout; ``zb`` is workspace of shape (nc, m).
+    """
+    nc = Am.shape[0]
+    m = Am.shape[1]
+    nb = m + 4
+    npres = nc * nr
+    has_q = m > nr
+    r0 = npres + (nc if has_q else 0)
+    last = nc - 1
+    # gather column blocks
+    for i in range(nc):
+        for j in range(nr):
+            zb[i, j] = rhs_vec[i * nr + j]
+        if has_q:
+            zb[i, nr] = rhs_vec[npres + i]
+    border = np.empty(nb)
+    for r in range(m):
+        border[r] = zb[0, r]
+    for r in range(4):
+        border[m + r] = rhs_vec[r0 + r]
+    # forward: z_i = D_i^{-1} (r_i - L_i z_{i-1}),  L_i = -hh Am[i]
+    col = np.empty(m)
+    for i in range(1, nc):
+        for r in range(m):
+            acc = zb[i, r]
+            if i > 1:
+                for t in range(m):
+                    acc += hh * Am[i, r, t] * zb[i - 1, t]
+            col[r] = acc
+        _lu_solve(Dlu[i], Dpiv[i], col)
+        for r in range(m):
+            zb[i, r] = col[r]
+    for i in range(last - 1, 0, -1):
+        for r in range(m):
+            acc = 0.0
+            for t in range(m):
+                acc += Uhat[i, r, t] * zb[i + 1, t]
+            zb[i, r] -= acc
+    # border
+    for r in range(m):
+        acc = 0.0
+        for t in range(m):
+            acc += Ap[0, r, t] * zb[1, t] + Am[0, r, t] * zb[last, t]
+        border[r] += hh * acc
+    for r in range(4):
+        acc = 0.0
+        for i in range(1, nc):
+            for t in range(m):
+                acc += Rr[i, r, t] * zb[i, t]
+        border[m + r] += hh * acc
+    _lu_solve(Slu, Spiv, border)
+    for r in range(m):
+        zb[0, r] = border[r]
+    for i in range(1, nc):
+        for r in range(m):
+            acc = 0.0
+            for q in range(nb):
+                acc += Y[i, r, q] * border[q]
+            zb[i, r] -= acc
+    for i in range(nc):
+        for j in range(nr):
+            x[i * nr + j] = zb[i, j]
+        if has_q:
+            x[npres + i] = zb[i, nr]
+    for r in range(4):
+        x[r0 + r] = border[m + r]

@@ -1,0 +1,41 @@
+# gfb-env: `make demo` runs the main job end to end, `make test` runs the tests; both bootstrap .venv.
+PY ?= python3.11
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: venv demo test test-slow lint format bench clean
+
+venv: $(STAMP)
+
+$(STAMP): pyproject.toml requirements.lock
+	@test -x $(BIN)/python || $(PY) -m venv $(VENV) || python3 -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	# torch first, pinned to the CPU wheel: an unpinned torch pulls a multi-GB CUDA build
+	$(BIN)/python -m pip install -q torch==2.13.0
+	$(BIN)/python -m pip install -q -r requirements.lock
+	$(BIN)/python -m pip install -q --no-deps -e .
+	@touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/python -m experiments.demo --out results/demo
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -q -m slow
+
+lint: $(STAMP)
+	$(BIN)/ruff check gfb_env agents experiments tests
+	$(BIN)/ruff format --check gfb_env agents experiments tests
+
+format: $(STAMP)
+	$(BIN)/ruff format gfb_env agents experiments tests
+	$(BIN)/ruff check --fix gfb_env agents experiments tests
+
+bench: $(STAMP)
+	$(BIN)/python -m experiments.bench_integrator
+
+clean:
+	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache

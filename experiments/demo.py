@@ -16,7 +16,8 @@ import json
 import time
 from pathlib import Path
 
-from gfb_env.cli import equilibrium_summary, main as gfb_main
+from gfb_env.cli import equilibrium_summary
+from gfb_env.cli import main as gfb_main
 from gfb_env.integrator import find_equilibrium
 from gfb_env.model import GFBModel
 from gfb_env.params import BearingParameters
@@ -42,13 +43,30 @@ def run(out: Path, duration: float) -> dict:
         m = GFBModel(structure)
         eq[structure] = equilibrium_summary(m, find_equilibrium(m, lam), lam)
         e = eq[structure]
-        print(f"== equilibrium {structure:>12}: eps = {e['eccentricity']:.4f} ({e['eccentricity_um']:.1f} um), "
-              f"gamma = {e['attitude_angle_deg']:.1f} deg, H_min = {e['min_film_thickness']:.3f}, "
-              f"force/load = {e['bearing_force'] / e['load']:.6f}")
+        print(
+            f"== equilibrium {structure:>12}: eps = {e['eccentricity']:.4f} ({e['eccentricity_um']:.1f} um), "
+            f"gamma = {e['attitude_angle_deg']:.1f} deg, H_min = {e['min_film_thickness']:.3f}, "
+            f"force/load = {e['bearing_force'] / e['load']:.6f}"
+        )
     (out / "equilibria.json").write_text(json.dumps(eq, indent=2))
     print("== transient: viscoelastic K_W=1, D_W=1, Lambda=0.6, from the perturbed equilibrium")
-    code = gfb_main(["simulate", "--structure", "viscoelastic", "--bearing-number", "0.6", "--foil-stiffness", "1",
-                     "--foil-damping", "1", "--duration", str(duration), "--out", str(out / "simulate")])
+    code = gfb_main(
+        [
+            "simulate",
+            "--structure",
+            "viscoelastic",
+            "--bearing-number",
+            "0.6",
+            "--foil-stiffness",
+            "1",
+            "--foil-damping",
+            "1",
+            "--duration",
+            str(duration),
+            "--out",
+            str(out / "simulate"),
+        ]
+    )
     if code != 0:
         raise SystemExit(code)
     summary = json.loads((out / "simulate" / "summary.json").read_text())

@@ -166,8 +166,6 @@ def jacobian_blocks(s, lam, dw, ip, fp, sn, cs, F, H, Hd, Ad, Ap, Am, Er, Rr, Sr
     kw = fp[_KW]
     kappa = fp[_KAPPA]
     mass = fp[_MASS]
-    npres = nc * nr
-    r0 = npres + (nc if st == VISCOELASTIC else 0)
     dphi = 2.0 * math.pi / nc
     dz = 1.0 / (nr + 1)
     a = 1.0 / (4.0 * dphi * dphi)
@@ -292,7 +290,7 @@ def jacobian_blocks(s, lam, dw, ip, fp, sn, cs, F, H, Hd, Ad, Ap, Am, Er, Rr, Sr
 
 # ------------------------------------------------------------------------------------------------
 # small dense LU with partial pivoting (m <= ~12: loops beat LAPACK call overhead)
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def _lu(A, piv):
     n = A.shape[0]
     for k in range(n):
@@ -320,7 +318,7 @@ def _lu(A, piv):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def _lu_solve(LU, piv, x):
     n = LU.shape[0]
     for k in range(n):
@@ -341,8 +339,9 @@ def _lu_solve(LU, piv, x):
         x[r] = acc / LU[r, r]
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def _lu_solve_mat(LU, piv, X):
+    # row-oriented so that the innermost loop runs over contiguous columns of X
     n = LU.shape[0]
     ncol = X.shape[1]
     for k in range(n):
@@ -352,20 +351,24 @@ def _lu_solve_mat(LU, piv, X):
                 tmp = X[k, q]
                 X[k, q] = X[p, q]
                 X[p, q] = tmp
-    for q in range(ncol):
-        for r in range(n):
-            acc = X[r, q]
-            for cidx in range(r):
-                acc -= LU[r, cidx] * X[cidx, q]
-            X[r, q] = acc
-        for r in range(n - 1, -1, -1):
-            acc = X[r, q]
-            for cidx in range(r + 1, n):
-                acc -= LU[r, cidx] * X[cidx, q]
-            X[r, q] = acc / LU[r, r]
+    for r in range(n):
+        for c in range(r):
+            a = LU[r, c]
+            if a != 0.0:
+                for q in range(ncol):
+                    X[r, q] -= a * X[c, q]
+    for r in range(n - 1, -1, -1):
+        for c in range(r + 1, n):
+            a = LU[r, c]
+            if a != 0.0:
+                for q in range(ncol):
+                    X[r, q] -= a * X[c, q]
+        inv = 1.0 / LU[r, r]
+        for q in range(ncol):
+            X[r, q] *= inv
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv):
     """Factor ``I - hh J`` (J in blocks).  Returns False if a pivot vanishes."""
     nc = Ad.shape[0]
@@ -379,13 +382,13 @@ def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv):
                 Dlu[i, r, q] = -hh * Ad[i, r, q]
             Dlu[i, r, r] += 1.0
         if i > 1:
-            # D_i -= L_i Uhat_{i-1},  L_i = -hh Am[i]
+            # D_i -= L_i Uhat_{i-1},  L_i = -hh Am[i]  (Am is mostly diagonal: skip its zeros)
             for r in range(m):
-                for q in range(m):
-                    acc = 0.0
-                    for t in range(m):
-                        acc += Am[i, r, t] * Uhat[i - 1, t, q]
-                    Dlu[i, r, q] += hh * acc
+                for t in range(m):
+                    a = hh * Am[i, r, t]
+                    if a != 0.0:
+                        for q in range(m):
+                            Dlu[i, r, q] += a * Uhat[i - 1, t, q]
         if not _lu(Dlu[i], Dpiv[i]):
             return False
         if i < last:
@@ -410,19 +413,18 @@ def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv):
                     Y[i, r, q] += -hh * Ap[last, r, q]
         if i > 1:
             for r in range(m):
-                for q in range(nb):
-                    acc = 0.0
-                    for t in range(m):
-                        acc += Am[i, r, t] * Y[i - 1, t, q]
-                    Y[i, r, q] += hh * acc
+                for t in range(m):
+                    a = hh * Am[i, r, t]
+                    if a != 0.0:
+                        for q in range(nb):
+                            Y[i, r, q] += a * Y[i - 1, t, q]
         _lu_solve_mat(Dlu[i], Dpiv[i], Y[i])
     for i in range(last - 1, 0, -1):
         for r in range(m):
-            for q in range(nb):
-                acc = 0.0
-                for t in range(m):
-                    acc += Uhat[i, r, t] * Y[i + 1, t, q]
-                Y[i, r, q] -= acc
+            for t in range(m):
+                a = Uhat[i, r, t]
+                for q in range(nb):
+                    Y[i, r, q] -= a * Y[i + 1, t, q]
     # Schur complement on the border [x_0, rotor]
     for r in range(nb):
         for q in range(nb):
@@ -440,22 +442,22 @@ def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv):
             Slu[m + r, m + q] = -hh * Srr[r, q]
         Slu[m + r, m + r] += 1.0
     for r in range(m):
-        for q in range(nb):
-            acc = 0.0
-            for t in range(m):
-                acc += Ap[0, r, t] * Y[1, t, q] + Am[0, r, t] * Y[last, t, q]
-            Slu[r, q] += hh * acc
+        for t in range(m):
+            a = hh * Ap[0, r, t]
+            b = hh * Am[0, r, t]
+            for q in range(nb):
+                Slu[r, q] += a * Y[1, t, q] + b * Y[last, t, q]
     for r in range(4):
-        for q in range(nb):
-            acc = 0.0
-            for i in range(1, nc):
-                for t in range(m):
-                    acc += Rr[i, r, t] * Y[i, t, q]
-            Slu[m + r, q] += hh * acc
+        for i in range(1, nc):
+            for t in range(m):
+                a = hh * Rr[i, r, t]
+                if a != 0.0:
+                    for q in range(nb):
+                        Slu[m + r, q] += a * Y[i, t, q]
     return _lu(Slu, Spiv)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def solve_system(hh, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, rhs_vec, x, zb):
     """Solve ``(I - hh J) x = rhs_vec`` with the factors of :func:`factor_system`.
 

@@ -201,9 +201,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         s0 = find_equilibrium(model, lam)
         s0 = layout.with_rotor(s0, *(layout.rotor(s0)[:2] + np.array(args.perturbation)), 0.0, 0.0)
     probe = np.array([layout.pressure_index(0, model.grid.midplane_row)])
-    integ = TrapezoidalIntegrator(
-        model, s0, lam, args.foil_damping, touchdown_film_thickness=args.touchdown
-    )
+    integ = TrapezoidalIntegrator(model, s0, lam, args.foil_damping, touchdown_film_thickness=args.touchdown)
     dt_rec = args.record_interval
     t0 = time.perf_counter()
     res = integ.advance(args.duration, record_interval=dt_rec, record_indices=probe, raise_on_failure=False)
@@ -239,8 +237,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         "wall_time_s": wall,
     }
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2))
-    plot_simulation(tr, out_dir / "simulation.png", title=f"{model.structure.value}, Lambda={lam:.4g}, "
-                    f"K_W={model.foil_stiffness:.3g}, D_W={args.foil_damping:.3g}")
+    plot_simulation(
+        tr,
+        out_dir / "simulation.png",
+        title=f"{model.structure.value}, Lambda={lam:.4g}, "
+        f"K_W={model.foil_stiffness:.3g}, D_W={args.foil_damping:.3g}",
+    )
     if args.json:
         print(json.dumps(summary))
     else:
@@ -258,38 +260,77 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    p = sub.add_parser("params", help="nondimensional parameters of Table 1",
-                       description="Print the nondimensional groups of the paper's Table 1 bearing: time "
-                       "scale T, bearing number Lambda, M, G, K_W (Walowit-Anno), kappa = R/L.")
-    p.add_argument("--speed-rpm", type=_positive("--speed-rpm"), default=None, metavar="N",
-                   help="rotor speed for the bearing number (default: 36 000 rpm of Table 1)")
+    p = sub.add_parser(
+        "params",
+        help="nondimensional parameters of Table 1",
+        description="Print the nondimensional groups of the paper's Table 1 bearing: time "
+        "scale T, bearing number Lambda, M, G, K_W (Walowit-Anno), kappa = R/L.",
+    )
+    p.add_argument(
+        "--speed-rpm",
+        type=_positive("--speed-rpm"),
+        default=None,
+        metavar="N",
+        help="rotor speed for the bearing number (default: 36 000 rpm of Table 1)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     p.set_defaults(func=cmd_params)
 
-    p = sub.add_parser("equilibrium", help="static equilibrium of the journal",
-                       description="Solve k(s0, Lambda) = 0 by Newton (load continuation from the centred "
-                       "journal) and report eccentricity, attitude angle, film and load balance.")
+    p = sub.add_parser(
+        "equilibrium",
+        help="static equilibrium of the journal",
+        description="Solve k(s0, Lambda) = 0 by Newton (load continuation from the centred "
+        "journal) and report eccentricity, attitude angle, film and load balance.",
+    )
     add_model_options(p)
     add_speed_options(p)
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     p.set_defaults(func=cmd_equilibrium)
 
-    p = sub.add_parser("simulate", help="transient simulation at constant speed",
-                       description="Integrate the coupled model with the adaptive trapezoidal rule and "
-                       "write trajectory.csv, simulation.png (orbit and time series) and summary.json.")
+    p = sub.add_parser(
+        "simulate",
+        help="transient simulation at constant speed",
+        description="Integrate the coupled model with the adaptive trapezoidal rule and "
+        "write trajectory.csv, simulation.png (orbit and time series) and summary.json.",
+    )
     add_model_options(p)
     add_speed_options(p)
-    p.add_argument("--duration", type=_positive("--duration"), required=True, metavar="TAU",
-                   help="simulated nondimensional time (tau = t / T, T = 1.59e-4 s for Table 1)")
-    p.add_argument("--start", choices=["centre", "equilibrium"], default="equilibrium",
-                   help="initial state: the centred journal at ambient pressure, or the static "
-                   "equilibrium displaced by --perturbation. Default: %(default)s")
-    p.add_argument("--perturbation", type=float, nargs=2, default=[0.01, 0.0], metavar=("DXI", "DETA"),
-                   help="displacement of the journal from equilibrium (units of C). Default: 0.01 0")
-    p.add_argument("--record-interval", type=_positive("--record-interval"), default=0.25, metavar="DTAU",
-                   help="sampling interval of the output (tau). Default: %(default)s")
-    p.add_argument("--touchdown", type=float, default=0.01, metavar="HMIN",
-                   help="min film thickness that counts as touchdown (units of C). Default: %(default)s")
+    p.add_argument(
+        "--duration",
+        type=_positive("--duration"),
+        required=True,
+        metavar="TAU",
+        help="simulated nondimensional time (tau = t / T, T = 1.59e-4 s for Table 1)",
+    )
+    p.add_argument(
+        "--start",
+        choices=["centre", "equilibrium"],
+        default="equilibrium",
+        help="initial state: the centred journal at ambient pressure, or the static "
+        "equilibrium displaced by --perturbation. Default: %(default)s",
+    )
+    p.add_argument(
+        "--perturbation",
+        type=float,
+        nargs=2,
+        default=[0.01, 0.0],
+        metavar=("DXI", "DETA"),
+        help="displacement of the journal from equilibrium (units of C). Default: 0.01 0",
+    )
+    p.add_argument(
+        "--record-interval",
+        type=_positive("--record-interval"),
+        default=0.25,
+        metavar="DTAU",
+        help="sampling interval of the output (tau). Default: %(default)s",
+    )
+    p.add_argument(
+        "--touchdown",
+        type=float,
+        default=0.01,
+        metavar="HMIN",
+        help="min film thickness that counts as touchdown (units of C). Default: %(default)s",
+    )
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=cmd_simulate)

@@ -42,7 +42,7 @@ from gfb_env.params import BearingParameters, NondimensionalParameters
 __all__ = ["Structure", "Grid", "StateLayout", "GFBModel"]
 
 
-class Structure(str, enum.Enum):
+class Structure(enum.StrEnum):
     """Foil structure model (paper Sect. 2.3)."""
 
     RIGID = "rigid"
@@ -58,9 +58,7 @@ class Structure(str, enum.Enum):
         try:
             return cls(value)
         except ValueError:
-            raise ValueError(
-                f"structure must be one of {[s.value for s in cls]}, got {value!r}"
-            ) from None
+            raise ValueError(f"structure must be one of {[s.value for s in cls]}, got {value!r}") from None
 
 
 @dataclass(frozen=True)
@@ -196,7 +194,9 @@ class StateLayout:
     def check(self, s: np.ndarray) -> np.ndarray:
         s = np.asarray(s, dtype=float)
         if s.shape != (self.size,):
-            raise ValueError(f"state must have shape ({self.size},) for {self.structure.value} {self.grid}, got {s.shape}")
+            raise ValueError(
+                f"state must have shape ({self.size},) for {self.structure.value} {self.grid}, got {s.shape}"
+            )
         return s
 
 
@@ -273,8 +273,18 @@ class GFBModel:
         """``k(s, Lambda, D_W)`` (``foil_damping`` D_W only matters for the viscoelastic foil)."""
         s = self.layout.check(s)
         out = np.empty_like(s)
-        K.rhs(s, float(bearing_number), float(foil_damping), self._ip, self._fp, self._sin, self._cos,
-              out, self._H, self._Hd)
+        K.rhs(
+            s,
+            float(bearing_number),
+            float(foil_damping),
+            self._ip,
+            self._fp,
+            self._sin,
+            self._cos,
+            out,
+            self._H,
+            self._Hd,
+        )
         return out
 
     def new_blocks(self) -> dict[str, np.ndarray]:
@@ -289,14 +299,34 @@ class GFBModel:
             "Srr": np.zeros((4, 4)),
         }
 
-    def jacobian_blocks(self, s: np.ndarray, bearing_number: float, foil_damping: float = 1.0,
-                        blocks: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+    def jacobian_blocks(
+        self,
+        s: np.ndarray,
+        bearing_number: float,
+        foil_damping: float = 1.0,
+        blocks: dict[str, np.ndarray] | None = None,
+    ) -> dict[str, np.ndarray]:
         s = self.layout.check(s)
         b = blocks if blocks is not None else self.new_blocks()
         F = np.empty_like(s)
-        K.jacobian_blocks(s, float(bearing_number), float(foil_damping), self._ip, self._fp, self._sin,
-                          self._cos, F, self._H, self._Hd, b["Ad"], b["Ap"], b["Am"], b["Er"], b["Rr"],
-                          b["Srr"])
+        K.jacobian_blocks(
+            s,
+            float(bearing_number),
+            float(foil_damping),
+            self._ip,
+            self._fp,
+            self._sin,
+            self._cos,
+            F,
+            self._H,
+            self._Hd,
+            b["Ad"],
+            b["Ap"],
+            b["Am"],
+            b["Er"],
+            b["Rr"],
+            b["Srr"],
+        )
         return b
 
     @cached_property

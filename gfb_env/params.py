@@ -140,7 +140,8 @@ class BearingParameters:
             )
         if self.bump_half_width_m >= self.bump_pitch_m:
             raise ValueError(
-                f"bump_half_width_m must be smaller than the bump pitch 2 pi R / N_B = {self.bump_pitch_m:.4g} m"
+                "bump_half_width_m must be smaller than the bump pitch 2 pi R / N_B = "
+                f"{self.bump_pitch_m:.4g} m"
             )
 
     # ----------------------------------------------------------------------------------------

@@ -17,7 +17,14 @@ def test_params_json(capsys):
     code, out, _ = run(capsys, "params", "--json")
     d = json.loads(out)
     assert code == 0
-    for key in ("time_scale_s", "bearing_number", "mass_parameter", "gravity_parameter", "foil_stiffness", "kappa"):
+    for key in (
+        "time_scale_s",
+        "bearing_number",
+        "mass_parameter",
+        "gravity_parameter",
+        "foil_stiffness",
+        "kappa",
+    ):
         assert key in d
     assert d["bearing_number"] == pytest.approx(0.5995, abs=1e-4)
     code, out, _ = run(capsys, "params", "--speed-rpm", "50000", "--json")
@@ -26,8 +33,9 @@ def test_params_json(capsys):
 
 @pytest.mark.parametrize("structure", ["rigid", "elastic", "viscoelastic"])
 def test_equilibrium_json_balances_load(capsys, structure):
-    code, out, _ = run(capsys, "equilibrium", "--structure", structure, "--speed-rpm", "36000", "--grid", "41x7",
-                       "--json")
+    code, out, _ = run(
+        capsys, "equilibrium", "--structure", structure, "--speed-rpm", "36000", "--grid", "41x7", "--json"
+    )
     d = json.loads(out)
     assert code == 0
     assert d["bearing_force"] == pytest.approx(d["load"], rel=1e-8)
@@ -40,17 +48,41 @@ def test_equilibrium_json_balances_load(capsys, structure):
 
 
 def test_equilibrium_table(capsys):
-    code, out, _ = run(capsys, "equilibrium", "--structure", "rigid", "--bearing-number", "0.6", "--grid", "21x5")
+    code, out, _ = run(
+        capsys, "equilibrium", "--structure", "rigid", "--bearing-number", "0.6", "--grid", "21x5"
+    )
     assert code == 0 and "eccentricity" in out and "attitude_angle_deg" in out
 
 
 def test_simulate_writes_outputs(tmp_path, capsys):
-    code, out, _ = run(capsys, "simulate", "--structure", "viscoelastic", "--bearing-number", "0.6",
-                       "--foil-stiffness", "1", "--foil-damping", "1", "--duration", "60", "--grid", "21x5",
-                       "--out", str(tmp_path), "--json")
+    code, out, _ = run(
+        capsys,
+        "simulate",
+        "--structure",
+        "viscoelastic",
+        "--bearing-number",
+        "0.6",
+        "--foil-stiffness",
+        "1",
+        "--foil-damping",
+        "1",
+        "--duration",
+        "60",
+        "--grid",
+        "21x5",
+        "--out",
+        str(tmp_path),
+        "--json",
+    )
     assert code == 0
     d = json.loads(out)
-    for key in ("max_eccentricity", "min_film_thickness", "whirl_frequency_ratio", "touchdown", "wall_time_s"):
+    for key in (
+        "max_eccentricity",
+        "min_film_thickness",
+        "whirl_frequency_ratio",
+        "touchdown",
+        "wall_time_s",
+    ):
         assert key in d
     assert d["touchdown"] is False
     header = (tmp_path / "trajectory.csv").read_text().splitlines()[0]
@@ -81,13 +113,25 @@ def test_bad_arguments_one_line_error_exit_2(capsys, argv, fragment):
 
 
 def test_value_error_from_the_model_exits_2(capsys):
-    code, _, err = run(capsys, "equilibrium", "--structure", "elastic", "--bearing-number", "0.6",
-                       "--foil-stiffness", "1e-12", "--grid", "13x5")
+    code, _, err = run(
+        capsys,
+        "equilibrium",
+        "--structure",
+        "elastic",
+        "--bearing-number",
+        "0.6",
+        "--foil-stiffness",
+        "1e-12",
+        "--grid",
+        "13x5",
+    )
     assert code in (1, 2)
     assert "error" in err and len(err.strip().splitlines()) == 1
 
 
 def test_console_entry_point_help():
-    out = subprocess.run([sys.executable, "-m", "gfb_env", "simulate", "--help"], capture_output=True, text=True)
+    out = subprocess.run(
+        [sys.executable, "-m", "gfb_env", "simulate", "--help"], capture_output=True, text=True
+    )
     assert out.returncode == 0
     assert "--foil-damping" in out.stdout and "--duration" in out.stdout

@@ -32,7 +32,9 @@ def test_trapezoidal_rule_is_second_order(small_visco):
     """Fixed steps h, h/2, h/4 from a smooth state (the stiff pressure transient of a displaced start
     has decayed): the rotor error falls by ~4 per halving."""
     m, s0 = small_visco
-    it = TrapezoidalIntegrator(m, m.layout.with_rotor(s0, 0.2, 0.5, 0.0, 0.05), 0.6, 1.0, rtol=1e-6, atol=1e-6)
+    it = TrapezoidalIntegrator(
+        m, m.layout.with_rotor(s0, 0.2, 0.5, 0.0, 0.05), 0.6, 1.0, rtol=1e-6, atol=1e-6
+    )
     it.advance(20.0)
     smooth = it.state
     rot = m.layout.rotor_slice
@@ -120,8 +122,10 @@ def test_recording_is_uniform_across_calls_and_schedule_is_linear(small_visco):
     m, s0 = small_visco
     it = TrapezoidalIntegrator(m, s0, 0.5, 1.0)
     probes = m.layout.midplane_probe_indices(3)
-    parts = [it.advance(t, bearing_number=0.5 + t / 100, record_interval=0.25, record_indices=probes).trajectory
-             for t in (3.1, 7.0, 10.0)]
+    parts = [
+        it.advance(t, bearing_number=0.5 + t / 100, record_interval=0.25, record_indices=probes).trajectory
+        for t in (3.1, 7.0, 10.0)
+    ]
     tau = np.concatenate([p.tau for p in parts])
     np.testing.assert_allclose(np.diff(tau), 0.25, atol=1e-9)
     assert tau[0] == 0.0 and tau[-1] == pytest.approx(10.0)
@@ -144,8 +148,13 @@ def test_failure_is_reported_never_nan(small_visco):
 
 @pytest.mark.parametrize(
     "kwargs,match",
-    [({"rtol": 0.0}, "rtol"), ({"atol": -1.0}, "atol"), ({"max_step": math.nan}, "max_step"),
-     ({"touchdown_film_thickness": 1.5}, "touchdown_film_thickness"), ({"foil_damping": 0.0}, "foil_damping")],
+    [
+        ({"rtol": 0.0}, "rtol"),
+        ({"atol": -1.0}, "atol"),
+        ({"max_step": math.nan}, "max_step"),
+        ({"touchdown_film_thickness": 1.5}, "touchdown_film_thickness"),
+        ({"foil_damping": 0.0}, "foil_damping"),
+    ],
 )
 def test_invalid_integrator_arguments(small_visco, kwargs, match):
     m, s0 = small_visco

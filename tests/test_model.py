@@ -70,12 +70,27 @@ def test_block_solver_matches_dense_solve(structure, rng):
     Uhat, Y = np.zeros((nc, mm, mm)), np.zeros((nc, mm, nb))
     Slu, Spiv = np.zeros((nb, nb)), np.zeros(nb, np.int64)
     for hh in (1e-3, 0.3, 10.0):
-        assert K.factor_system(hh, b["Ad"], b["Ap"], b["Am"], b["Er"], b["Rr"], b["Srr"], Dlu, Dpiv, Uhat, Y,
-                               Slu, Spiv)
+        assert K.factor_system(
+            hh, b["Ad"], b["Ap"], b["Am"], b["Er"], b["Rr"], b["Srr"], Dlu, Dpiv, Uhat, Y, Slu, Spiv
+        )
         r = rng.standard_normal(s.size)
         x = np.empty_like(r)
-        K.solve_system(hh, b["Am"], b["Ap"], b["Rr"], Dlu, Dpiv, Uhat, Y, Slu, Spiv, m.grid.n_rows, r, x,
-                       np.empty((nc, mm)))
+        K.solve_system(
+            hh,
+            b["Am"],
+            b["Ap"],
+            b["Rr"],
+            Dlu,
+            Dpiv,
+            Uhat,
+            Y,
+            Slu,
+            Spiv,
+            m.grid.n_rows,
+            r,
+            x,
+            np.empty((nc, mm)),
+        )
         np.testing.assert_allclose(x, np.linalg.solve(np.eye(s.size) - hh * J, r), rtol=1e-8, atol=1e-10)
 
 
@@ -96,7 +111,9 @@ def test_elastic_and_viscoelastic_equilibria_coincide():
     se = find_equilibrium(GFBModel("elastic", foil_stiffness=1.0), 0.6)
     mv = GFBModel("viscoelastic", foil_stiffness=1.0)
     sv = find_equilibrium(mv, 0.6)
-    assert mv.eccentricity(sv) == pytest.approx(GFBModel("elastic", foil_stiffness=1.0).eccentricity(se), rel=1e-8)
+    assert mv.eccentricity(sv) == pytest.approx(
+        GFBModel("elastic", foil_stiffness=1.0).eccentricity(se), rel=1e-8
+    )
 
 
 @pytest.mark.parametrize("structure", ["rigid", "viscoelastic"])

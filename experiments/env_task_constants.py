@@ -1,0 +1,127 @@
+"""Precompute the constants of the Gymnasium tasks (``gfb_env/envs/data/task_constants.json``).
+
+For each grid in ``--grids`` (nominal bearing of :mod:`gfb_env.envs._data`, K_W = 0.50):
+
+* ``lambda_c(D_W)`` on a log grid of the damping range, the optimum damping ``d_opt`` and the best
+  stable bearing number ``lambda_best = max_D lambda_c(D)`` (golden-section refinement in log D);
+* a point on the developed whirl limit cycle at ``Lambda_w = 1.07 lambda_best``, ``D_W = d_opt``
+  (the start of WhirlRecovery-v0), with its period and extremes.
+
+For the default grid only, the RunUpRandomized-v0 lookup table of ``lambda_best`` (and ``d_opt``,
+``lambda_c`` at the damping bounds) over clearance C, stiffness factor f_K (K_W = f_K K_W,WA(C)) and
+external load F_L.
+
+Stability uses the private helper ``gfb_env.envs._stability`` (TEMPORARY, to be replaced by
+``gfb_env.analysis``).  Run::
+
+    .venv/bin/python experiments/env_task_constants.py            # ~5 min on one core
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import time
+
+from gfb_env.envs._data import NOMINAL_BEARING, TASK_CONSTANTS_PATH
+from gfb_env.envs._stability import best_stable_bearing_number, task_constants
+from gfb_env.model import GFBModel, Grid
+
+D_MIN, D_MAX = 0.1, 10.0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--grids", default="31x7,79x7")
+    ap.add_argument("--default-grid", default="31x7")
+    ap.add_argument("--no-table", action="store_true")
+    args = ap.parse_args()
+    out = {
+        "bearing": NOMINAL_BEARING.as_dict(),
+        "foil_stiffness": NOMINAL_BEARING.foil_stiffness,
+        "damping_range": [D_MIN, D_MAX],
+        "command": "python experiments/env_task_constants.py "
+        + " ".join(f"--grids {args.grids} --default-grid {args.default_grid}".split()),
+        "nominal": {},
+    }
+    if TASK_CONSTANTS_PATH.exists():
+        old = json.loads(TASK_CONSTANTS_PATH.read_text())
+        out["nominal"].update(old.get("nominal", {}))
+        if args.no_table and "randomized" in old:
+            out["randomized"] = old["randomized"]
+    for g in args.grids.split(","):
+        t0 = time.perf_counter()
+        model = GFBModel("viscoelastic", Grid.parse(g), bearing=NOMINAL_BEARING)
+        entry = task_constants(model, D_MIN, D_MAX)
+        entry["seconds"] = time.perf_counter() - t0
+        out["nominal"][g] = entry
+        print(
+            g,
+            {k: v for k, v in entry.items() if k not in ("whirl", "curve_d", "curve_lambda_c")},
+            "whirl:",
+            {k: v for k, v in entry["whirl"].items() if k != "state"},
+            flush=True,
+        )
+        _write(out)
+    if not args.no_table:
+        t0 = time.perf_counter()
+        clearance = [40e-6, 45e-6, 50e-6, 55e-6, 60e-6]
+        stiff = [0.7, 1.0, 1.4]
+        load = [10.0, 20.25, 30.0]
+        rows = []
+        for c, fk, fl in itertools.product(clearance, stiff, load):
+            bp = NOMINAL_BEARING.replace(clearance_m=c, external_load_per_bearing_n=fl)
+            model = GFBModel(
+                "viscoelastic",
+                Grid.parse(args.default_grid),
+                bearing=bp,
+                foil_stiffness=fk * bp.foil_stiffness,
+            )
+            e = best_stable_bearing_number(model, D_MIN, D_MAX, tol=1e-3, n_scan=7, n_golden=5)
+            rows.append(
+                [
+                    c,
+                    fk,
+                    fl,
+                    e["lambda_best"],
+                    e["d_opt"],
+                    e["lambda_c_dmin"],
+                    e["lambda_c_dmax"],
+                    bp.speed_rpm_at(e["lambda_best"]),
+                    bp.speed_rpm_at(e["lambda_c_dmin"]),
+                ]
+            )
+            print("table", rows[-1], flush=True)
+        out["randomized"] = {
+            "grid": args.default_grid,
+            "axes": {
+                "clearance_m": clearance,
+                "stiffness_factor": stiff,
+                "external_load_per_bearing_n": load,
+            },
+            "columns": [
+                "clearance_m",
+                "stiffness_factor",
+                "external_load_per_bearing_n",
+                "lambda_best",
+                "d_opt",
+                "lambda_c_dmin",
+                "lambda_c_dmax",
+                "rpm_best",
+                "rpm_c_dmin",
+            ],
+            "rows": rows,
+            "seconds": time.perf_counter() - t0,
+        }
+    _write(out)
+    print(json.dumps({"written": str(TASK_CONSTANTS_PATH)}))
+
+
+def _write(out: dict) -> None:
+    TASK_CONSTANTS_PATH.parent.mkdir(parents=True, exist_ok=True)
+    TASK_CONSTANTS_PATH.write_text(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()

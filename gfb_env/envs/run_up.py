@@ -1,0 +1,241 @@
+"""``gfb_env/RunUp-v0``: run a gas foil bearing rotor up to a target speed that is stable only with the
+right foil damping."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+
+from gfb_env.envs._data import load_task_constants
+from gfb_env.envs._stability import task_constants
+from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, GFBEnv, StepOutcome, viscoelastic_model
+from gfb_env.integrator import find_equilibrium
+from gfb_env.model import Grid
+from gfb_env.params import BearingParameters
+
+__all__ = ["RunUpEnv", "nominal_constants"]
+
+
+def nominal_constants(grid: Grid, bearing: BearingParameters) -> dict:
+    """Stability constants of the nominal bearing on ``grid``: ``lambda_best`` (max over D_W of the
+    critical bearing number Lambda_c), ``d_opt``, ``lambda_c_dmin`` and the whirl start state.
+
+    Read from ``data/task_constants.json`` (``experiments/env_task_constants.py``) when the grid and
+    bearing are tabulated, otherwise computed here once (seconds to a minute; constructor only).
+    """
+    table = load_task_constants()
+    entry = table.get("nominal", {}).get(str(grid))
+    if entry is not None and table.get("bearing") == bearing.as_dict():
+        return entry
+    # not tabulated: compute once per process (TEMPORARY helper, to be replaced by gfb_env.analysis)
+    key = (str(grid), tuple(sorted(bearing.as_dict().items())))
+    if key not in _COMPUTED:
+        gym.logger.warn(f"task constants for grid {grid} are not tabulated; computing them (slow, once)")
+        _COMPUTED[key] = task_constants(viscoelastic_model(grid, bearing), tol=1e-3)
+    return _COMPUTED[key]
+
+
+_COMPUTED: dict = {}
+
+
+class RunUpEnv(GFBEnv):
+    """Run a GFB rotor up from a low speed to a target speed as fast as possible and hold it stably.
+
+    ## Description
+
+    A rigid rotor (half of it, per bearing) runs on a first-generation bump-type gas foil bearing
+    (Leister, Baum & Seemann 2017; Table 1 with a softer bump foil, ``K_W = 0.50``).  Above the
+    critical bearing number ``Lambda_c`` the static equilibrium loses stability through a subcritical
+    Hopf bifurcation and the journal whirls at about half the rotor speed, on a limit cycle that can
+    reach the foil (touchdown).  ``Lambda_c`` depends on the foil damping ``D_W`` (paper Fig. 4): on the
+    default grid it is 0.590 at ``D_W = 0.1``, 0.659 at ``D_W = 1`` and at most
+    ``lambda_best = 0.7015`` at the optimum ``D_W ~ 2.3``.  The target speed is
+    ``target_fraction * lambda_best`` (default 0.95: 0.666, ~39 990 rpm), reachable without whirl only
+    with a damping of roughly 1.3 to 4.  The agent commands the speed ramp (a motor acceleration
+    limit) and the foil damping (e.g. a controllable friction or squeeze-film damper).
+
+    ## Action Space
+
+    ``Box(-1, 1, (2,), float32)``:
+
+    | index | action | mapping |
+    |---|---|---|
+    | 0 | speed ramp | ``dn/dt = a0 * max_acceleration_rpm_per_s`` (30 000 rpm/s: dLambda/dtau = 7.9e-5 a0) |
+    | 1 | foil damping | ``D_W = D_min (D_max/D_min)^((a1+1)/2)``, log scale, ``[0.1, 10]``; a1 = 0: D_W = 1 |
+
+    The commanded speed is clipped to ``speed_range_rpm`` (12 000-60 000 rpm).
+
+    Lambda and D_W ramp linearly from their current values to the commanded ones over the control
+    step.  NaN actions are replaced by 0, +-inf and out-of-range values are clipped to [-1, 1];
+    ``info["action_sanitised"]`` says so.
+
+    ## Observation Space
+
+    ``Box(float32)`` of size ``8 + n_pressure_probes`` (always clipped into the bounds):
+
+    | index | observation | bounds |
+    |---|---|---|
+    | 0, 1 | journal position xi (horizontal), eta (vertical, along gravity), units of C | [-3, 3] |
+    | 2, 3 | journal velocity xi', eta', units of C/T | [-3, 3] |
+    | 4, 5 | orbit envelope: extent (max - min) of xi and eta over the last control step | [0, 6] |
+    | 6 | rotor speed n / 60 000 rpm (Lambda = 1.0 is 60 042 rpm) | [0, 1] |
+    | 7 | foil damping D_W on the action scale, ``2 log(D_W/D_min)/log(D_max/D_min) - 1`` | [-1, 1] |
+    | 8 ... | midplane pressure P = p/p0 at ``n_pressure_probes`` probes, phi = 2 pi k / n (*) | [0, 10] |
+
+    (*) phi is measured from the direction of gravity (the eta axis), where the loaded film is thinnest.
+
+    Optional Gaussian sensor noise (``observation_noise``) on indices 0-5 and the pressures.
+
+    ## Rewards
+
+    Per control step, with the progress potential ``Phi = -|Lambda - Lambda_t| / (Lambda_t - Lambda_0)``::
+
+        r = progress_weight * (Phi_{k+1} - Phi_k) - time_penalty - whirl_penalty * min(A, 1.5)
+            + success_bonus [on success] - touchdown_penalty [on touchdown or solver failure]
+
+    ``A`` is the whirl amplitude: the largest distance (units of C) of the journal from the linear trend
+    of its position over the control step.  Defaults: ``progress_weight = 10`` (a full run-up earns
+    +10), ``time_penalty = 0.02``, ``whirl_penalty = 0.5``, ``success_bonus = 50``,
+    ``touchdown_penalty = 200`` (more than whirling to the time limit).
+
+    ## Starting State
+
+    The static equilibrium at ``start_speed_rpm`` (default 27 000 rpm, Lambda_0 = 0.450, stable for
+    every damping) with ``D_W`` drawn log-uniformly from the damping range, and a random journal
+    velocity of magnitude up to 1e-3 C/T (both from ``np_random``).
+
+    ## Episode End
+
+    * ``terminated``, ``termination_reason = "success"``: speed within ``target_tolerance`` (1 %) of
+      the target and whirl amplitude below ``stable_amplitude`` (0.05 C) for ``hold_steps`` (10)
+      consecutive control steps.  Random disturbance kicks (probability 0.1 per step, 0.005 C/T) make
+      an unstable equilibrium show itself within the hold window.
+    * ``terminated``, ``"touchdown"``: min film thickness below ``touchdown_film_thickness`` (0.02 C,
+      1 um).  ``"solver_failure"``: the integrator could not continue (treated like a touchdown).
+    * ``truncated`` by the ``TimeLimit`` wrapper after ``max_episode_steps = 200`` control steps
+      (12 000 tau = 1.9 s of rotor time).
+
+    ## Arguments
+
+    ``gymnasium.make("gfb_env/RunUp-v0", target_fraction=0.95, start_speed_rpm=27000, target_tolerance=0.01,
+    progress_weight=10, time_penalty=0.02, whirl_penalty=0.5, success_bonus=50, touchdown_penalty=200,
+    **base)`` where ``base`` are the arguments of :class:`~gfb_env.envs.base.GFBEnv`: ``grid="31x7"``,
+    ``control_interval=60``, ``max_acceleration_rpm_per_s=30000``, ``speed_range_rpm=(12000, 60000)``,
+    ``damping_range=(0.1, 10)``, ``n_pressure_probes=8``, ``observation_noise=0``,
+    ``touchdown_film_thickness=0.02``, ``stable_amplitude=0.05``, ``hold_steps=10``,
+    ``disturbance_probability=0.1``, ``disturbance_magnitude=0.005``, ``integrator_options=None``,
+    ``render_mode=None``.
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    def __init__(
+        self,
+        target_fraction: float = 0.95,
+        start_speed_rpm: float = 27_000.0,
+        target_tolerance: float = 0.01,
+        progress_weight: float = 10.0,
+        time_penalty: float = 0.02,
+        whirl_penalty: float = 0.5,
+        success_bonus: float = 50.0,
+        touchdown_penalty: float = 200.0,
+        grid: str | Grid = DEFAULT_GRID,
+        **kwargs,
+    ):
+        super().__init__(grid=grid, **kwargs)
+        if not (math.isfinite(target_fraction) and 0 < target_fraction <= 1.5):
+            raise ValueError(f"target_fraction must lie in (0, 1.5], got {target_fraction!r}")
+        if not (math.isfinite(target_tolerance) and 0 < target_tolerance < 0.5):
+            raise ValueError(f"target_tolerance must lie in (0, 0.5), got {target_tolerance!r}")
+        lo, hi = self.speed_range_rpm
+        if not (math.isfinite(start_speed_rpm) and lo <= start_speed_rpm <= hi):
+            raise ValueError(
+                f"start_speed_rpm must lie in speed_range_rpm {self.speed_range_rpm}, got {start_speed_rpm!r}"
+            )
+        for name, v in (
+            ("progress_weight", progress_weight),
+            ("time_penalty", time_penalty),
+            ("whirl_penalty", whirl_penalty),
+            ("success_bonus", success_bonus),
+            ("touchdown_penalty", touchdown_penalty),
+        ):
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be finite and non-negative, got {v!r}")
+        self.target_fraction = float(target_fraction)
+        self.start_speed_rpm = float(start_speed_rpm)
+        self.target_tolerance = float(target_tolerance)
+        self.progress_weight = float(progress_weight)
+        self.time_penalty = float(time_penalty)
+        self.whirl_penalty = float(whirl_penalty)
+        self.success_bonus = float(success_bonus)
+        self.touchdown_penalty = float(touchdown_penalty)
+        self.constants = nominal_constants(self.grid, self.nominal_bearing)
+        self._nominal_model = viscoelastic_model(self.grid, self.nominal_bearing)
+        b = self.nominal_bearing
+        self.start_bearing_number = b.bearing_number_at(self.start_speed_rpm)
+        self.target_bearing_number = self.target_fraction * self.constants["lambda_best"]
+        if not self.start_bearing_number < self.target_bearing_number:
+            raise ValueError("start_speed_rpm must be below the target speed")
+        self._start_equilibrium = find_equilibrium(self._nominal_model, self.start_bearing_number)
+
+    # ------------------------------------------------------------------------------------------
+    def _setup_episode(self, options: dict | None) -> EpisodeSetup:
+        model = self._nominal_model
+        L = model.layout
+        dmin, dmax = self.damping_range
+        dw = float(math.exp(self.np_random.uniform(math.log(dmin), math.log(dmax))))
+        v = 1e-3 * self.np_random.random()
+        ang = self.np_random.uniform(0, 2 * math.pi)
+        s = self._start_equilibrium
+        s = L.with_rotor(s, *L.rotor(s)[:2], v * math.cos(ang), v * math.sin(ang))
+        return EpisodeSetup(
+            model,
+            s,
+            self.start_bearing_number,
+            dw,
+            self.nominal_bearing,
+            self._target_info(self.nominal_bearing, self.start_bearing_number, self.target_bearing_number),
+        )
+
+    def _target_info(self, b: BearingParameters, lam0: float, lam_t: float) -> dict:
+        self._lam0, self._lam_t = lam0, lam_t
+        return {
+            "target_bearing_number": lam_t,
+            "target_speed_rpm": b.speed_rpm_at(lam_t),
+            "start_bearing_number": lam0,
+        }
+
+    def _potential(self, lam: float) -> float:
+        return -abs(lam - self._lam_t) / (self._lam_t - self._lam0)
+
+    def _is_at_target(self, out: StepOutcome) -> bool:
+        return abs(out.bearing_number - self._lam_t) <= self.target_tolerance * self._lam_t
+
+    def _task_reward(self, out: StepOutcome, success: bool) -> float:
+        r = self.progress_weight * (
+            self._potential(out.bearing_number) - self._potential(out.bearing_number_start)
+        )
+        r -= self.time_penalty + self.whirl_penalty * min(out.whirl_amplitude, 1.5)
+        if success:
+            r += self.success_bonus
+        if out.touchdown or out.solver_failure:
+            r -= self.touchdown_penalty
+        return r
+
+    def _task_state(self) -> dict:
+        return {"lam0": self._lam0, "lam_t": self._lam_t}
+
+    def _set_task_state(self, state: dict) -> None:
+        self._lam0, self._lam_t = state["lam0"], state["lam_t"]
+
+    def scripted_action(self, ramp: float = 1.0) -> np.ndarray:
+        """A simple expert: ramp at ``ramp`` of the motor limit toward the target with the optimum
+        damping of the stability map (used by the benchmark and the tests)."""
+        lam = self._integ.bearing_number
+        step = self.max_rate() * self.control_interval
+        a0 = float(np.clip((self._lam_t - lam) / step, -ramp, ramp))
+        return np.array([a0, self.action_from_damping(self.constants["d_opt"])], dtype=np.float32)

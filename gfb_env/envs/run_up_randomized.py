@@ -1,0 +1,213 @@
+"""``gfb_env/RunUpRandomized-v0``: RunUp with a bearing drawn per episode (clearance, foil stiffness,
+load) and disturbance kicks; the target is relative to the best stable speed of the drawn bearing."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.interpolate import RegularGridInterpolator
+
+from gfb_env.envs._data import load_task_constants
+from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, viscoelastic_model
+from gfb_env.envs.run_up import RunUpEnv
+from gfb_env.integrator import find_equilibrium
+from gfb_env.model import Grid
+
+__all__ = ["RunUpRandomizedEnv", "BestStableSpeedTable"]
+
+
+class BestStableSpeedTable:
+    """Trilinear interpolant of the precomputed ``lambda_best(C, f_K, F_L)`` (and ``d_opt``,
+    ``lambda_c`` at D_min) from ``data/task_constants.json`` (``experiments/env_task_constants.py``)."""
+
+    def __init__(self, table: dict):
+        axes = table["axes"]
+        self.axes = [
+            np.asarray(axes[k], dtype=float)
+            for k in ("clearance_m", "stiffness_factor", "external_load_per_bearing_n")
+        ]
+        cols = table["columns"]
+        rows = np.asarray(table["rows"], dtype=float)
+        shape = tuple(len(a) for a in self.axes)
+        self.grid = table["grid"]
+        self._f = {}
+        for name in ("lambda_best", "d_opt", "lambda_c_dmin"):
+            v = rows[:, cols.index(name)].reshape(shape)
+            self._f[name] = RegularGridInterpolator(self.axes, np.log(v) if name == "d_opt" else v)
+        self.rpm_c_dmin_min = float(rows[:, cols.index("rpm_c_dmin")].min())
+        self.bounds = [(float(a[0]), float(a[-1])) for a in self.axes]
+
+    def __call__(self, clearance_m: float, stiffness_factor: float, load_n: float) -> dict:
+        x = np.array([[clearance_m, stiffness_factor, load_n]])
+        return {
+            "lambda_best": float(self._f["lambda_best"](x)[0]),
+            "d_opt": float(np.exp(self._f["d_opt"](x)[0])),
+            "lambda_c_dmin": float(self._f["lambda_c_dmin"](x)[0]),
+        }
+
+
+class RunUpRandomizedEnv(RunUpEnv):
+    """RunUp-v0 on a bearing drawn per episode: a fixed schedule cannot be right for every draw.
+
+    ## Description
+
+    As ``gfb_env/RunUp-v0``, but every ``reset`` draws (from ``np_random``, uniformly):
+
+    * the radial clearance ``C`` in ``clearance_range_m`` (default 40-60 um around the nominal 50 um;
+      the paper stresses that C is poorly known).  C changes M (~C^5), the time scale T (~C^-2) and
+      the Walowit-Anno stiffness (~C);
+    * a foil stiffness factor ``f_K`` in ``stiffness_factor_range`` (0.7-1.4):
+      ``K_W = f_K * K_W,WA(C)`` (nominal K_W,WA(50 um) = 0.50);
+    * the external static load per bearing ``F_L`` in ``load_range_n`` (10-30 N, nominal 20.25 N).
+
+    The target is ``target_fraction`` (0.95) of the best stable speed of the drawn bearing,
+    ``lambda_best = max_D Lambda_c(D)``, read from a trilinear interpolant of a precomputed 5 x 3 x 3
+    table on the default grid (``data/task_constants.json``; the drawn ranges are the table's).
+    The drawn parameters, and so the target, are hidden by default; ``observe_parameters=True``
+    appends them to the observation (for ablations).
+
+    ## Action Space
+
+    As RunUp-v0 (the motor limit is in rpm/s, so its dLambda/dtau depends on the drawn C).
+
+    ## Observation Space
+
+    As RunUp-v0 (size ``8 + n_pressure_probes``).  Sensors measure physical quantities, scaled by the
+    *nominal* bearing (position / 50 um, velocity / (50 um / T_nom), speed / 60 000 rpm), so the
+    observation does not reveal C directly.  With ``observe_parameters=True`` three more entries:
+    ``C / 50 um`` [0, 2], ``f_K`` [0, 2], ``F_L / 20.25 N`` [0, 2].
+
+    ## Rewards
+
+    As RunUp-v0 with ``Lambda_t = target_fraction * lambda_best(drawn bearing)`` and ``Lambda_0`` the
+    drawn bearing's Lambda at ``start_speed_rpm``: the progress reward is relative to the best stable
+    speed of the drawn bearing (+10 for a full run-up whatever the draw).
+
+    ## Starting State
+
+    The static equilibrium of the drawn bearing at ``start_speed_rpm`` (default: 85 % of the lowest
+    speed at which any bearing of the ranges loses stability at the worst damping, so the start is
+    stable for every draw and damping), random D_W and a small random velocity as RunUp-v0.
+
+    ## Episode End
+
+    As RunUp-v0 (success / touchdown / solver_failure; truncated after 250 control steps).
+
+    ## Arguments
+
+    ``gymnasium.make("gfb_env/RunUpRandomized-v0", clearance_range_m=(40e-6, 60e-6),
+    stiffness_factor_range=(0.7, 1.4), load_range_n=(10, 30), observe_parameters=False,
+    start_speed_rpm=None, **runup)`` with the RunUp-v0 and base arguments (``target_fraction``,
+    reward weights, ``grid``, ``disturbance_probability=0.1``, ...).  The ranges must lie inside the
+    table's.  ``reset(options={"clearance_m": ..., "stiffness_factor": ..., "load_n": ...})`` fixes a draw.
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    def __init__(
+        self,
+        clearance_range_m: tuple[float, float] = (40e-6, 60e-6),
+        stiffness_factor_range: tuple[float, float] = (0.7, 1.4),
+        load_range_n: tuple[float, float] = (10.0, 30.0),
+        observe_parameters: bool = False,
+        start_speed_rpm: float | None = None,
+        grid: str | Grid = DEFAULT_GRID,
+        **kwargs,
+    ):
+        table = load_task_constants().get("randomized")
+        if table is None:
+            raise RuntimeError(
+                "data/task_constants.json has no randomized table; run experiments/env_task_constants.py"
+            )
+        self.table = BestStableSpeedTable(table)
+        self.observe_parameters = bool(observe_parameters)
+        ranges = {}
+        for name, r, (tlo, thi) in (
+            ("clearance_range_m", clearance_range_m, self.table.bounds[0]),
+            ("stiffness_factor_range", stiffness_factor_range, self.table.bounds[1]),
+            ("load_range_n", load_range_n, self.table.bounds[2]),
+        ):
+            try:
+                lo, hi = (float(x) for x in r)
+            except (TypeError, ValueError):
+                raise ValueError(f"{name} must be a pair (low, high), got {r!r}") from None
+            if not (math.isfinite(lo) and math.isfinite(hi) and tlo - 1e-12 <= lo <= hi <= thi + 1e-12):
+                raise ValueError(
+                    f"{name} must satisfy {tlo:g} <= low <= high <= {thi:g} (the table), got {r!r}"
+                )
+            ranges[name] = (lo, hi)
+        self.clearance_range_m = ranges["clearance_range_m"]
+        self.stiffness_factor_range = ranges["stiffness_factor_range"]
+        self.load_range_n = ranges["load_range_n"]
+        if start_speed_rpm is None:
+            start_speed_rpm = round(0.85 * self.table.rpm_c_dmin_min, -2)
+        kwargs.setdefault("max_acceleration_rpm_per_s", 30_000.0)
+        super().__init__(start_speed_rpm=start_speed_rpm, grid=grid, **kwargs)
+        self._draw = None
+        self._models: dict = {}
+
+    def _extra_observation_bounds(self):
+        if not getattr(self, "observe_parameters", False):
+            return None
+        return np.zeros(3, dtype=np.float32), np.full(3, 2.0, dtype=np.float32)
+
+    def _extra_observation(self):
+        if not self.observe_parameters:
+            return None
+        c, fk, fl = self._draw
+        nb = self.nominal_bearing
+        return np.array([c / nb.clearance_m, fk, fl / nb.external_load_per_bearing_n])
+
+    def _setup_episode(self, options: dict | None) -> EpisodeSetup:
+        rng = self.np_random
+        c = float(rng.uniform(*self.clearance_range_m))
+        fk = float(rng.uniform(*self.stiffness_factor_range))
+        fl = float(rng.uniform(*self.load_range_n))
+        if options:
+            c = float(options.get("clearance_m", c))
+            fk = float(options.get("stiffness_factor", fk))
+            fl = float(options.get("load_n", fl))
+        b = self.nominal_bearing.replace(clearance_m=c, external_load_per_bearing_n=fl)
+        key = (c, fk, fl)
+        model = viscoelastic_model(self.grid, b, foil_stiffness=fk * b.foil_stiffness)
+        self._draw = key
+        best = self.table(c, fk, fl)
+        lam0 = b.bearing_number_at(self.start_speed_rpm)
+        lam_t = self.target_fraction * best["lambda_best"]
+        s = find_equilibrium(model, lam0)
+        L = model.layout
+        dmin, dmax = self.damping_range
+        dw = float(math.exp(rng.uniform(math.log(dmin), math.log(dmax))))
+        v = 1e-3 * rng.random()
+        ang = rng.uniform(0, 2 * math.pi)
+        s = L.with_rotor(s, *L.rotor(s)[:2], v * math.cos(ang), v * math.sin(ang))
+        info = self._target_info(b, lam0, lam_t)
+        info.update(
+            {
+                "clearance_um": c * 1e6,
+                "stiffness_factor": fk,
+                "foil_stiffness": model.foil_stiffness,
+                "load_n": fl,
+                "best_stable_bearing_number": best["lambda_best"],
+                "best_stable_speed_rpm": b.speed_rpm_at(best["lambda_best"]),
+                "optimum_damping": best["d_opt"],
+            }
+        )
+        self._d_opt = best["d_opt"]
+        return EpisodeSetup(model, s, lam0, dw, b, info)
+
+    def _task_state(self) -> dict:
+        return {**super()._task_state(), "draw": self._draw, "d_opt": self._d_opt}
+
+    def _set_task_state(self, state: dict) -> None:
+        super()._set_task_state(state)
+        self._draw, self._d_opt = state["draw"], state["d_opt"]
+
+    def scripted_action(self, ramp: float = 1.0) -> np.ndarray:
+        """Oracle expert (knows the drawn bearing): ramp to the target with its optimum damping."""
+        a = super().scripted_action(ramp)
+        a[1] = self.action_from_damping(self._d_opt)
+        return a

@@ -1,0 +1,223 @@
+"""Tests of the Gymnasium environments (issue 4): API conformance, vector envs, seeding, robustness
+to extreme actions, snapshots and rendering.  Short episodes via constructor keyword arguments."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import gfb_env.envs  # noqa: F401  (registers the ids)
+from gfb_env.envs import ENV_IDS, RunUpEnv, WhirlRecoveryEnv
+from gfb_env.envs.base import _whirl_amplitude
+
+# short control steps keep the tests fast; the physics is the default one
+FAST = {"control_interval": 20.0}
+
+
+def _make(env_id: str, **kwargs) -> gym.Env:
+    return gym.make(env_id, max_episode_steps=kwargs.pop("max_episode_steps", 6), **{**FAST, **kwargs})
+
+
+def _rollout(env: gym.Env, actions, seed: int | None):
+    obs, info = env.reset(seed=seed)
+    out = [obs]
+    for a in actions:
+        obs, r, term, trunc, info = env.step(a)
+        out.append(np.r_[obs, r, term, trunc])
+        if term or trunc:
+            break
+    return np.concatenate(out)
+
+
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_gymnasium_check_env(env_id):
+    from gymnasium.utils.env_checker import check_env
+
+    env = _make(env_id)
+    check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_sb3_check_env(env_id):
+    from stable_baselines3.common.env_checker import check_env
+
+    env = _make(env_id)
+    check_env(env, warn=True)
+    env.close()
+
+
+def test_registration_is_idempotent():
+    from gfb_env.envs import register_envs
+
+    register_envs()
+    register_envs()
+    for env_id in ENV_IDS:
+        assert gym.spec(env_id).max_episode_steps in (200, 250)
+
+
+@pytest.mark.parametrize("mode", ["sync", "async"])
+def test_make_vec(mode):
+    envs = gym.make_vec("gfb_env/RunUp-v0", num_envs=2, vectorization_mode=mode, **FAST)
+    obs, _ = envs.reset(seed=3)
+    assert obs.shape == (2, *envs.single_observation_space.shape)
+    for _ in range(3):
+        obs, r, term, trunc, info = envs.step(envs.action_space.sample())
+        assert np.all(np.isfinite(obs)) and r.shape == (2,)
+    envs.close()
+
+
+def test_sb3_subproc_vec_env():
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    venv = make_vec_env(
+        "gfb_env/WhirlRecovery-v0", n_envs=2, seed=1, vec_env_cls=SubprocVecEnv, env_kwargs=FAST
+    )
+    obs = venv.reset()
+    for _ in range(3):
+        obs, r, done, info = venv.step(np.array([venv.action_space.sample() for _ in range(2)]))
+        assert np.all(np.isfinite(obs))
+    venv.close()
+
+
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_seeded_determinism(env_id):
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, size=(5, 2)).astype(np.float32)
+    kw = {"disturbance_probability": 0.5, "observation_noise": 0.01}
+    a = _rollout(_make(env_id, **kw), actions, seed=11)
+    b = _rollout(_make(env_id, **kw), actions, seed=11)
+    assert np.array_equal(a, b)
+    # seeded reset followed by an unseeded reset is reproducible too
+    e1, e2 = _make(env_id, **kw), _make(env_id, **kw)
+    _rollout(e1, actions[:2], seed=5)
+    _rollout(e2, actions[:2], seed=5)
+    assert np.array_equal(_rollout(e1, actions, seed=None), _rollout(e2, actions, seed=None))
+    # another seed gives another episode
+    c = _rollout(_make(env_id, **kw), actions, seed=12)
+    assert not np.array_equal(a, c)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_snapshot_restore_is_exact(env_id):
+    env = _make(env_id, disturbance_probability=0.5, observation_noise=0.01).unwrapped
+    env.reset(seed=2)
+    env.step(np.array([1.0, 0.3], dtype=np.float32))
+    snap = env.get_state()
+    actions = [np.array([0.5, -0.2], dtype=np.float32), np.array([-1.0, 1.0], dtype=np.float32)]
+    first = [env.step(a) for a in actions]
+    env.reset(seed=99)  # wander off, then restore
+    env.step(np.array([-1.0, -1.0], dtype=np.float32))
+    env.set_state(snap)
+    second = [env.step(a) for a in actions]
+    for (o1, r1, t1, u1, i1), (o2, r2, t2, u2, i2) in zip(first, second, strict=True):
+        assert np.array_equal(o1, o2) and r1 == r2 and t1 == t2 and u1 == u2
+        assert i1["tau"] == i2["tau"] and i1["xi_um"] == i2["xi_um"]
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_render_rgb_array(env_id):
+    env = _make(env_id, render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    img = env.render()
+    assert img.ndim == 3 and img.shape[2] == 3 and img.dtype == np.uint8 and img.shape[0] > 100
+    env.close()
+
+
+# ------------------------------------------------------------------------------------------------
+_extreme = st.sampled_from([np.nan, np.inf, -np.inf, 1e30, -1e30, 1.0, -1.0, 0.0, 5.0])
+_action = st.tuples(st.one_of(st.floats(-1, 1), _extreme), st.one_of(st.floats(-1, 1), _extreme))
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    env_index=st.integers(0, len(ENV_IDS) - 1),
+    actions=st.lists(_action, min_size=1, max_size=6),
+    seed=st.integers(0, 2**16),
+)
+def test_random_and_extreme_actions(env_index, actions, seed):
+    env = _make(ENV_IDS[env_index], max_episode_steps=len(actions))
+    obs, info = env.reset(seed=seed)
+    assert env.observation_space.contains(obs)
+    ended = False
+    for a in actions:
+        act = np.array(a, dtype=np.float32)
+        obs, r, term, trunc, info = env.step(act)
+        assert np.all(np.isfinite(obs)) and env.observation_space.contains(obs)
+        assert math.isfinite(r)
+        if not np.all(np.isfinite(act)) or np.any(np.abs(act) > 1):
+            assert info["action_sanitised"]
+        if term:
+            assert info["termination_reason"] in ("success", "touchdown", "solver_failure")
+        if term or trunc:
+            ended = True
+            break
+    assert ended  # the TimeLimit ends it at the latest
+    env.close()
+
+
+def test_full_speed_with_bad_damping_whirls_or_touches_down():
+    """Holding a speed above Lambda_c(D_min) with the least damping must not count as a success."""
+    env = RunUpEnv(control_interval=60.0, disturbance_probability=1.0, target_fraction=0.95)
+    env.reset(seed=0)
+    reasons, amps = [], []
+    for _ in range(120):
+        obs, r, term, trunc, info = env.step(np.array([1.0, -1.0], dtype=np.float32))
+        amps.append(info["whirl_amplitude"])
+        if term:
+            reasons.append(info["termination_reason"])
+            break
+    assert reasons != ["success"]
+    assert max(amps) > env.stable_amplitude
+
+
+@pytest.mark.slow
+def test_scripted_run_up_succeeds():
+    env = gym.make("gfb_env/RunUp-v0")
+    env.reset(seed=0)
+    info = {}
+    for _ in range(200):
+        _, _, term, trunc, info = env.step(env.unwrapped.scripted_action())
+        if term or trunc:
+            break
+    assert info["termination_reason"] == "success"
+
+
+def test_invalid_arguments_raise_value_error_naming_the_field():
+    for kwargs, field in [
+        ({"control_interval": -1}, "control_interval"),
+        ({"grid": "10x4"}, "n_z"),
+        ({"damping_range": (1, 0.5)}, "damping_range"),
+        ({"n_pressure_probes": 0}, "n_pressure_probes"),
+        ({"target_fraction": 0.0}, "target_fraction"),
+        ({"render_mode": "ascii"}, "render_mode"),
+    ]:
+        with pytest.raises(ValueError, match=field):
+            RunUpEnv(**kwargs)
+    with pytest.raises(ValueError, match="clearance_range_m"):
+        gym.make("gfb_env/RunUpRandomized-v0", clearance_range_m=(1e-6, 2e-6))
+
+
+def test_whirl_recovery_starts_whirling():
+    env = WhirlRecoveryEnv(control_interval=60.0, disturbance_probability=0.0)
+    obs, info = env.reset(seed=0)
+    obs, r, term, trunc, info = env.step(
+        np.array([0.0, env.action_from_damping(env.whirl_damping)], np.float32)
+    )
+    assert info["whirl_amplitude"] > 0.3 and not term
+    assert obs[4] > 0.5  # orbit extent in xi
+
+
+def test_whirl_amplitude_ignores_the_drift():
+    t = np.linspace(0, 60, 121)
+    assert _whirl_amplitude(t, 0.1 + 1e-3 * t, 0.5 - 2e-3 * t) < 1e-12
+    assert abs(_whirl_amplitude(t, 0.2 * np.sin(0.3 * t), 0.2 * np.cos(0.3 * t)) - 0.2) < 0.02

@@ -173,18 +173,14 @@ def cmd_equilibrium(args: argparse.Namespace) -> int:
     return 0
 
 
-def whirl_frequency_ratio(tau: np.ndarray, signal: np.ndarray, bearing_number: float) -> float:
-    """Dominant angular frequency of ``signal`` (Hann-windowed FFT, mean removed) divided by Lambda."""
-    if len(tau) < 8:
-        return float("nan")
-    dt = float(tau[1] - tau[0])
-    x = (signal - signal.mean()) * np.hanning(len(signal))
-    spec = np.abs(np.fft.rfft(x))
-    freqs = np.fft.rfftfreq(len(x), dt) * 2.0 * math.pi
-    spec[0] = 0.0
-    if not np.any(spec > 0):
-        return float("nan")
-    return float(freqs[int(np.argmax(spec))] / bearing_number)
+def whirl_frequency_ratio(signal: np.ndarray, sample_interval: float, bearing_number: float) -> float | None:
+    """Dominant whirl frequency / Lambda from the FFT of the last 30 % of ``signal`` (None if flat)."""
+    from gfb_env.analysis.spectrum import dominant_frequency
+
+    try:
+        return dominant_frequency(signal, sample_interval, fraction=0.3, bearing_number=bearing_number).ratio
+    except ValueError:
+        return None
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
@@ -214,7 +210,6 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         [tr.tau, tr.xi, tr.eta, tr.bearing_number, tr.foil_damping, tr.min_film_thickness, tr.probes[:, 0]]
     )
     np.savetxt(out_dir / "trajectory.csv", data, delimiter=",", header=header, comments="", fmt="%.8g")
-    last = tr.tau >= tr.tau[-1] - max(0.3 * args.duration, min(args.duration, 200.0))
     summary = {
         "structure": model.structure.value,
         "grid": str(model.grid),
@@ -230,7 +225,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         "max_eccentricity_um": model.bearing.micrometres(res.max_eccentricity),
         "min_film_thickness": float(res.min_film_thickness),
         "min_film_thickness_um": model.bearing.micrometres(res.min_film_thickness),
-        "whirl_frequency_ratio": whirl_frequency_ratio(tr.tau[last], tr.xi[last], lam),
+        "whirl_frequency_ratio": whirl_frequency_ratio(tr.xi, dt_rec, lam),
         "touchdown": res.touchdown is not None,
         "touchdown_tau": None if res.touchdown is None else res.touchdown.tau,
         "steps": res.steps,

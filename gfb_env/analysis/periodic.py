@@ -376,6 +376,7 @@ class SettledWhirl:
 
     Attributes:
         status: ``"whirl"`` (settled limit cycle), ``"equilibrium"`` (decayed), ``"touchdown"``,
+            ``"failed"`` (the integrator's step size collapsed, e.g. the film closing),
             ``"unsettled"`` (still changing at ``tau_max``).
         state: final state; ``tau``: final time.
         amplitude: half the peak-to-peak ``xi`` of the last window.
@@ -438,8 +439,14 @@ def settle_whirl(
     res = None
     while integ.tau < tau_max - 1e-9:
         res = integ.advance(
-            min(integ.tau + window, tau_max), record_interval=record_interval, record_indices=record_indices
+            min(integ.tau + window, tau_max),
+            record_interval=record_interval,
+            record_indices=record_indices,
+            raise_on_failure=False,
         )
+        if res.status in ("failed", "max_steps"):
+            status = "failed"
+            break
         tr = res.trajectory
         ptp = float(np.ptp(tr.xi)) if len(tr) else 0.0
         history.append((integ.tau, ptp, float(tr.eccentricity.max()) if len(tr) else math.nan))
@@ -683,7 +690,9 @@ def fold_bearing_number(
     if critical is None:
         critical = critical_bearing_number(model, dw).critical_bearing_number
     lam0 = critical + offset
-    sw = settle_whirl(model, lam0, dw, kick=0.05, tau_max=8000)
+    sw = settle_whirl(
+        model, lam0, dw, kick=0.3, tau_max=8000, integrator_options={"touchdown_film_thickness": 1e-4}
+    )
     if sw.status != "whirl":
         raise ShootingError(f"no settled whirl at Lambda={lam0:.4g} (status {sw.status})")
     o = periodic_orbit_from_simulation(model, lam0, dw, sw.state, sw.period, n_steps=n_steps)

@@ -1,0 +1,121 @@
+"""Hysteresis map: Lambda_c (Hopf) and Lambda_fold (fold of cycles) against D_W for K_W = 1 and Table-1 K_W.
+
+For each (K_W, D_W): ``Lambda_c`` from the eigenvalues, then the whirl at ``Lambda_c + 0.01`` is shot
+and continued down round the fold of cycles (:func:`gfb_env.analysis.fold_bearing_number`).  Regions:
+below ``Lambda_fold`` only the equilibrium is stable, between the two both (bistable: a disturbance can
+start a whirl that survives), above ``Lambda_c`` only the whirl.  A few points also get the brute-force
+coast-down estimate as a cross-check.  The environments read ``hysteresis_map.csv`` through
+:func:`gfb_env.analysis.load_hysteresis_map`.
+
+    python -m experiments.hysteresis_map [--quick] [--out results/hysteresis_map] [--n-jobs 2]
+                                         [--scheduler ADDRESS]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from gfb_env import BearingParameters
+from gfb_env.analysis import compute_hysteresis_map, write_hysteresis_map
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="K_W=1, D_W=4 on a 33x7 grid (tests)")
+    ap.add_argument("--out", default=None, help="output directory (default results/hysteresis_map)")
+    ap.add_argument("--n-jobs", type=int, default=1, help="parallel workers")
+    ap.add_argument("--scheduler", default=None, help="Dask scheduler address")
+    ap.add_argument("--n-steps", type=int, default=300, help="trapezoidal steps per period in the shooting")
+    a = ap.parse_args(argv)
+    out = Path(a.out or ("results/hysteresis_map_quick" if a.quick else "results/hysteresis_map"))
+    kw_table = round(BearingParameters().foil_stiffness, 4)
+    if a.quick:
+        kws, dws, grid, n_steps, cd = [1.0], [4.0], "33x7", 120, set()
+    else:
+        kws, dws, grid, n_steps = [1.0, kw_table], [0.5, 1.0, 2.0, 4.0, 8.0, 16.0], "79x7", a.n_steps
+        cd = {(1.0, 1.0), (1.0, 4.0), (kw_table, 1.0)}
+    t0 = time.perf_counter()
+    rows = compute_hysteresis_map(
+        kws,
+        dws,
+        grid=grid,
+        n_steps=n_steps,
+        coast_down_points=cd,
+        n_jobs=a.n_jobs,
+        scheduler=a.scheduler,
+        checkpoint=out / "sweep.jsonl",
+    )
+    p = write_hysteresis_map(rows, out)
+    _plot(rows, kws, out / "hysteresis_map.png")
+    summary = {
+        "grid": grid,
+        "n_steps": n_steps,
+        "wall_time_s": time.perf_counter() - t0,
+        "points": [
+            {
+                k: r.get(k)
+                for k in (
+                    "foil_stiffness",
+                    "foil_damping",
+                    "critical_bearing_number",
+                    "fold_bearing_number",
+                    "coast_down_fold_bearing_number",
+                    "limit_cycle_amplitude_at_critical",
+                    "fold_message",
+                )
+            }
+            for r in rows
+        ],
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str))
+    print("wrote", p)
+    return 0
+
+
+def _plot(rows: list[dict], kws: list[float], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axs = plt.subplots(1, len(kws), figsize=(6 * len(kws), 4.5), squeeze=False, constrained_layout=True)
+    for ax, kw in zip(axs[0], kws):
+        r = sorted([x for x in rows if x["foil_stiffness"] == kw], key=lambda x: x["foil_damping"])
+        d = np.array([x["foil_damping"] for x in r])
+
+        def col(name, r=r):
+            return np.array([x.get(name) if x.get(name) is not None else math.nan for x in r], dtype=float)
+
+        lc, lf = col("critical_bearing_number"), col("fold_bearing_number")
+        cd = col("coast_down_fold_bearing_number")
+        lf_fill = np.where(np.isfinite(lf), lf, lc)
+        top = np.nanmax(lc) * 1.15 if np.isfinite(lc).any() else 1.0
+        bot = np.nanmin(lf_fill) * 0.9 if np.isfinite(lf_fill).any() else 0.3
+        ax.fill_between(d, bot, lf_fill, color="tab:green", alpha=0.25, label="stable equilibrium only")
+        ax.fill_between(
+            d, lf_fill, lc, color="tab:orange", alpha=0.35, label="bistable (equilibrium + whirl)"
+        )
+        ax.fill_between(d, lc, top, color="tab:red", alpha=0.2, label="whirl only")
+        ax.plot(d, lc, "k-o", ms=4, label=r"$\Lambda_c$ (Hopf)")
+        ax.plot(d, lf, "b-s", ms=4, label=r"$\Lambda_{fold}$ (shooting)")
+        if np.isfinite(cd).any():
+            ax.plot(d, cd, "mx", ms=8, mew=2, label=r"$\Lambda_{fold}$ (coast-down)")
+        ax.set_xscale("log")
+        ax.set_ylim(bot, top)
+        ax.set_xlabel(r"foil damping $D_W$")
+        ax.set_ylabel(r"bearing number $\Lambda$")
+        ax.set_title(f"viscoelastic foil, $K_W$ = {kw:g}")
+        ax.legend(fontsize=8, loc="lower right")
+        ax.grid(alpha=0.3)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

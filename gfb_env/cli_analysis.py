@@ -1,0 +1,331 @@
+"""Analysis subcommands of the ``gfb`` CLI: ``critical``, ``hysteresis``, ``map``.
+
+The lead's :mod:`gfb_env.cli` calls :func:`add_analysis_commands` on its subparsers object; each
+subcommand sets ``func=handler`` where ``handler(args) -> int`` returns the exit code.  Invalid input
+raises :class:`ValueError` with a one-line message (``main`` turns it into an error and exit code 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["add_analysis_commands", "cmd_critical", "cmd_hysteresis", "cmd_map"]
+
+_FMT = argparse.RawDescriptionHelpFormatter
+
+
+def _add_common(p: argparse.ArgumentParser, damping: bool = True) -> None:
+    p.add_argument(
+        "--structure",
+        choices=["rigid", "elastic", "viscoelastic"],
+        default="viscoelastic",
+        help="foil structure model (paper Sect. 2.3): rigid Q=0, elastic K_W Q=-(Pbar-1), viscoelastic "
+        "D_W Q' + K_W Q = -(Pbar-1) (default: viscoelastic)",
+    )
+    p.add_argument(
+        "--foil-stiffness",
+        type=float,
+        default=None,
+        metavar="K",
+        help="nondimensional foil stiffness K_W (default: Walowit-Anno value of Table 1, 2.337)",
+    )
+    if damping:
+        p.add_argument(
+            "--foil-damping",
+            type=float,
+            default=1.0,
+            metavar="D",
+            help="nondimensional foil damping D_W (viscoelastic only; default 1.0)",
+        )
+    p.add_argument(
+        "--grid", default="79x7", help="finite-difference grid N_phi x N_Z (default: the paper's 79x7)"
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+
+
+def _model(args):
+    from gfb_env.model import GFBModel, Grid
+
+    if args.foil_stiffness is not None and not (
+        math.isfinite(args.foil_stiffness) and args.foil_stiffness > 0
+    ):
+        raise ValueError(f"--foil-stiffness must be a finite positive number, got {args.foil_stiffness!r}")
+    fd = getattr(args, "foil_damping", 1.0)
+    if not (math.isfinite(fd) and fd > 0):
+        raise ValueError(f"--foil-damping must be a finite positive number, got {fd!r}")
+    return GFBModel(args.structure, Grid.parse(args.grid), foil_stiffness=args.foil_stiffness)
+
+
+def _critical(args, model):
+    from gfb_env.analysis.stability import StabilityAnalysisError, critical_bearing_number
+
+    lo, hi = args.bearing_range
+    try:
+        return critical_bearing_number(model, args.foil_damping, (lo, hi), args.scan_step)
+    except StabilityAnalysisError as exc:
+        raise ValueError(str(exc)) from None
+
+
+def cmd_critical(args: argparse.Namespace) -> int:
+    """Handler of ``gfb critical``."""
+    model = _model(args)
+    t0 = time.perf_counter()
+    cp = _critical(args, model)
+    d = cp.as_dict()
+    d["wall_time_s"] = time.perf_counter() - t0
+    if args.json:
+        print(json.dumps(d))
+    else:
+        print(f"{cp.structure} foil, K_W={cp.foil_stiffness:.4g}, D_W={cp.foil_damping:.4g}, grid {cp.grid}")
+        print(f"  critical bearing number  Lambda_c = {cp.critical_bearing_number:.5f}")
+        print(f"  critical speed                   = {cp.critical_speed_rpm:.0f} rpm")
+        print(f"  whirl frequency ratio Im/Lambda  = {cp.whirl_frequency_ratio:.4f}")
+        print(f"  eccentricity at onset            = {cp.eccentricity_at_onset:.4f}")
+        print(f"  crossing speed dRe/dLambda       = {cp.crossing_speed:.4f}")
+        print(f"  ({cp.evaluations} eigenvalue solves, {d['wall_time_s']:.2f} s)")
+    return 0
+
+
+def cmd_hysteresis(args: argparse.Namespace) -> int:
+    """Handler of ``gfb hysteresis``."""
+    from gfb_env.analysis.periodic import ShootingError, coast_down_fold, fold_bearing_number
+
+    model = _model(args)
+    if args.n_steps < 20:
+        raise ValueError(f"--n-steps must be >= 20, got {args.n_steps}")
+    t0 = time.perf_counter()
+    cp = _critical(args, model)
+    d = cp.as_dict()
+    try:
+        fr = fold_bearing_number(
+            model,
+            args.foil_damping,
+            critical=cp.critical_bearing_number,
+            n_steps=args.n_steps,
+            progress=not args.json,
+        )
+    except ShootingError as exc:
+        raise ValueError(f"no limit cycle could be computed: {exc}") from None
+    d.update(
+        {
+            "fold_bearing_number": fr.fold_bearing_number,
+            "fold_speed_rpm": (
+                model.bearing.speed_rpm_at(fr.fold_bearing_number)
+                if fr.fold_bearing_number is not None
+                else None
+            ),
+            "limit_cycle_amplitude_at_critical": fr.amplitude_at_critical,
+            "limit_cycle_max_eccentricity_at_critical": fr.max_eccentricity_at_critical,
+            "whirl_period_at_critical": fr.period_at_critical,
+            "subcritical": fr.subcritical,
+            "continuation_message": fr.message,
+        }
+    )
+    if args.coast_down:
+        try:
+            cd = coast_down_fold(
+                model, args.foil_damping, cp.critical_bearing_number + 0.01, progress=not args.json
+            )
+            d["coast_down_fold_bearing_number"] = cd.fold_bearing_number
+        except ShootingError as exc:
+            d["coast_down_fold_bearing_number"] = None
+            d["coast_down_message"] = str(exc)
+    d["wall_time_s"] = time.perf_counter() - t0
+    if args.json:
+        print(json.dumps(d, default=float))
+    else:
+        lf = d["fold_bearing_number"]
+        print(f"{cp.structure} foil, K_W={cp.foil_stiffness:.4g}, D_W={cp.foil_damping:.4g}, grid {cp.grid}")
+        print(
+            f"  Hopf point       Lambda_c    = {cp.critical_bearing_number:.5f} "
+            f"({cp.critical_speed_rpm:.0f} rpm)"
+        )
+        print(
+            "  fold of cycles   Lambda_fold = "
+            + ("not found" if lf is None else f"{lf:.5f} ({d['fold_speed_rpm']:.0f} rpm)")
+        )
+        if lf is not None:
+            kind = "subcritical: bistable band" if lf < cp.critical_bearing_number else "no hysteresis"
+            print(f"  {kind} [{lf:.4f}, {cp.critical_bearing_number:.4f}]")
+        print(
+            f"  limit cycle at Lambda_c: amplitude {fr.amplitude_at_critical:.4f}, "
+            f"max eps {fr.max_eccentricity_at_critical:.4f}, period {fr.period_at_critical:.3f}"
+        )
+        if "coast_down_fold_bearing_number" in d:
+            print(f"  coast-down estimate of Lambda_fold = {d['coast_down_fold_bearing_number']}")
+        print(f"  ({d['wall_time_s']:.1f} s)")
+    return 0
+
+
+def _floats(text: str, name: str) -> list[float]:
+    try:
+        vals = [float(x) for x in str(text).replace(",", " ").split()]
+    except ValueError:
+        raise ValueError(f"{name} must be a comma-separated list of numbers, got {text!r}") from None
+    if not vals or any(not (math.isfinite(v) and v > 0) for v in vals):
+        raise ValueError(f"{name} must be a non-empty list of positive numbers, got {text!r}")
+    return vals
+
+
+def cmd_map(args: argparse.Namespace) -> int:
+    """Handler of ``gfb map``."""
+    from gfb_env.analysis.maps import compute_stability_map, write_stability_map
+    from gfb_env.model import Grid
+
+    Grid.parse(args.grid)
+    kws = _floats(args.foil_stiffness, "--foil-stiffness")
+    dws = _floats(args.foil_damping, "--foil-damping")
+    if args.n_jobs == 0:
+        raise ValueError("--n-jobs must be non-zero")
+    out = Path(args.out)
+    t0 = time.perf_counter()
+    smap = compute_stability_map(
+        kws,
+        dws,
+        grid=args.grid,
+        n_jobs=args.n_jobs,
+        scheduler=args.scheduler,
+        checkpoint=out / "sweep.jsonl",
+        progress=not args.json,
+    )
+    paths = write_stability_map(smap, out)
+    d = {
+        "out": str(out),
+        "files": {k: str(v) for k, v in paths.items()},
+        "rigid_critical_bearing_number": smap.rigid,
+        "foil_stiffness": kws,
+        "elastic_critical_bearing_number": [None if not np.isfinite(x) else float(x) for x in smap.elastic],
+        "optimum_foil_damping": [None if not np.isfinite(x) else float(x) for x in smap.optimum_damping],
+        "max_critical_bearing_number": [
+            None if not np.isfinite(x) else float(x) for x in smap.optimum_critical
+        ],
+        "wall_time_s": time.perf_counter() - t0,
+    }
+    if args.json:
+        print(json.dumps(d))
+    else:
+        print(f"rigid Lambda_c = {smap.rigid:.5f}")
+        for k, e, dopt, lmax in zip(kws, smap.elastic, smap.optimum_damping, smap.optimum_critical):
+            print(
+                f"K_W={k:8.4g}: elastic Lambda_c={e:.5f}  "
+                f"viscoelastic max Lambda_c={lmax:.5f} at D_W*={dopt:.4g}"
+            )
+        print("wrote " + ", ".join(str(p) for p in paths.values()), file=sys.stdout)
+    return 0
+
+
+def add_analysis_commands(subparsers) -> None:
+    """Add ``critical``, ``hysteresis`` and ``map`` to an :mod:`argparse` subparsers object."""
+    p = subparsers.add_parser(
+        "critical",
+        formatter_class=_FMT,
+        help="critical bearing number Lambda_c (onset of whirl) from the eigenvalues",
+        description=(
+            "Critical bearing number Lambda_c: the equilibrium is solved along Lambda (warm-started\n"
+            "Newton), the eigenvalues of the analytic Jacobian are computed, and the first crossing of\n"
+            "max Re(lambda) = 0 above a stable equilibrium is bracketed by a scan and refined by Brent's\n"
+            "method to 1e-5 (paper Sect. 3.2, Fig. 4).\n\n"
+            "JSON keys: critical_bearing_number, critical_speed_rpm, whirl_frequency_ratio\n"
+            "(Im(lambda)/Lambda_c), eccentricity_at_onset, whirl_frequency, crossing_speed\n"
+            "(dRe(lambda)/dLambda), structure, foil_stiffness, foil_damping, grid, evaluations,\n"
+            "wall_time_s.\n"
+            "Exit code 2 with a message when no stable equilibrium exists in the range, or when it is\n"
+            "stable up to the end of the range."
+        ),
+    )
+    _add_common(p)
+    _add_range(p)
+    p.set_defaults(func=cmd_critical)
+
+    p = subparsers.add_parser(
+        "hysteresis",
+        formatter_class=_FMT,
+        help="Lambda_c and the fold of cycles Lambda_fold (hysteresis band) by shooting",
+        description=(
+            "Hysteresis band of the subcritical Hopf bifurcation: Lambda_c from the eigenvalues, then\n"
+            "the whirl at Lambda_c + 0.01 is integrated until it settles, converged by shooting\n"
+            "(Newton on the initial state and the period, fixed-step trapezoidal map with exact\n"
+            "variational equations) and continued in Lambda by pseudo-arclength round the fold of\n"
+            "cycles Lambda_fold.  For Lambda_fold < Lambda < Lambda_c both the equilibrium and the\n"
+            "whirl are stable.  Takes about a minute on the paper grid.\n\n"
+            "JSON adds to the `critical` keys: fold_bearing_number, fold_speed_rpm,\n"
+            "limit_cycle_amplitude_at_critical (half peak-to-peak xi),\n"
+            "limit_cycle_max_eccentricity_at_critical,\n"
+            "whirl_period_at_critical, subcritical, continuation_message and, with --coast-down,\n"
+            "coast_down_fold_bearing_number."
+        ),
+    )
+    _add_common(p)
+    _add_range(p)
+    p.add_argument(
+        "--n-steps",
+        type=int,
+        default=300,
+        help="trapezoidal steps per period of the shooting map (default 300)",
+    )
+    p.add_argument(
+        "--coast-down",
+        action="store_true",
+        help="also estimate Lambda_fold by a brute-force coast-down (lower Lambda in steps of "
+        "0.005 from the developed whirl until it collapses)",
+    )
+    p.set_defaults(func=cmd_hysteresis)
+
+    p = subparsers.add_parser(
+        "map",
+        formatter_class=_FMT,
+        help="stability map Lambda_c(K_W, D_W) (paper Fig. 4): CSV + PNG",
+        description=(
+            "Stability map (paper Fig. 4): Lambda_c of the viscoelastic foil over the grid of\n"
+            "--foil-stiffness x --foil-damping values, the elastic curve over K_W and the rigid value.\n"
+            "Runs as a resumable joblib sweep (checkpoint OUT/sweep.jsonl), optionally on a Dask cluster.\n"
+            "Writes OUT/stability_map.csv, OUT/optimum_damping.csv and OUT/stability_map.png."
+        ),
+    )
+    p.add_argument(
+        "--foil-stiffness",
+        default="0.1,0.3,1,2.337,10",
+        metavar="K1,K2,...",
+        help="comma-separated K_W values (default 0.1,0.3,1,2.337,10)",
+    )
+    p.add_argument(
+        "--foil-damping",
+        default="0.3,1,3,10,30",
+        metavar="D1,D2,...",
+        help="comma-separated D_W values (default 0.3,1,3,10,30)",
+    )
+    p.add_argument("--grid", default="79x7", help="finite-difference grid N_phi x N_Z (default 79x7)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--n-jobs", type=int, default=1, help="parallel joblib workers (default 1; -1: all cores)")
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="Dask scheduler address, e.g. tcp://host:8786: run the sweep on that cluster",
+    )
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.set_defaults(func=cmd_map)
+
+
+def _add_range(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--bearing-range",
+        type=float,
+        nargs=2,
+        default=(0.1, 3.0),
+        metavar=("MIN", "MAX"),
+        help="range of Lambda scanned for the stability change (default 0.1 3.0)",
+    )
+    p.add_argument(
+        "--scan-step",
+        type=float,
+        default=0.05,
+        help="coarse scan step in Lambda before Brent's refinement (default 0.05)",
+    )

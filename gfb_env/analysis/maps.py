@@ -228,12 +228,12 @@ def plot_stability_map(smap: StabilityMap, path: str | os.PathLike) -> None:
     Z = np.ma.masked_invalid(smap.viscoelastic.T)
     if len(K) > 1 and len(D) > 1:
         pc = a1.pcolormesh(K, D, Z, shading="gouraud", cmap="viridis")
+        a1.set_xlim(K.min(), K.max())
         fig.colorbar(pc, ax=a1, label=r"critical bearing number $\Lambda_c$")
         cs = a1.contour(K, D, Z, colors="w", linewidths=0.6, levels=8)
         a1.clabel(cs, fontsize=7, fmt="%.2f")
     else:
         a1.scatter(np.repeat(K, len(D)), np.tile(D, len(K)), c=smap.viscoelastic.ravel())
-    a1.plot(smap.optimum_damping, K * 0 + smap.optimum_damping, alpha=0)  # keep limits
     a1.plot(K, smap.optimum_damping, "r-o", ms=4, label=r"optimum $D_W^*$ (max $\Lambda_c$)")
     a1.set_xscale("log")
     a1.set_yscale("log")

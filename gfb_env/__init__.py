@@ -6,7 +6,16 @@ Layers (each uses only those above it): :mod:`gfb_env.params` -> :mod:`gfb_env.m
 vibrations in gas foil bearing rotor systems".
 """
 
-from gfb_env.integrator import (
+import os
+
+# Single-threaded BLAS by default: our matrices are small (n ~ 500) and OpenBLAS's spinning threads
+# collapse when the cores are shared (a 472 x 472 eig took 10 s with 2 threads on a loaded 2-core
+# machine, 0.2 s with 1).  Only effective when gfb_env is imported before numpy; the Makefile exports
+# the same variables.  Set them yourself to override.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+from gfb_env.integrator import (  # noqa: E402
     AdvanceResult,
     EquilibriumError,
     IntegrationError,
@@ -15,8 +24,8 @@ from gfb_env.integrator import (
     TrapezoidalIntegrator,
     find_equilibrium,
 )
-from gfb_env.model import GFBModel, Grid, StateLayout, Structure
-from gfb_env.params import BearingParameters, NondimensionalParameters
+from gfb_env.model import GFBModel, Grid, StateLayout, Structure  # noqa: E402
+from gfb_env.params import BearingParameters, NondimensionalParameters  # noqa: E402
 
 __version__ = "0.1.0"
 

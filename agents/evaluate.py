@@ -1,0 +1,231 @@
+"""Evaluate scripted and learned policies alike on gfb_env tasks.
+
+* :class:`LearnedPolicy` wraps a committed SB3 model (``model.zip``) and its VecNormalize statistics
+  (``vecnormalize.pkl``) behind the :class:`~agents.policies.Policy` interface: ``predict`` normalises the
+  raw observation with the saved statistics and calls the model.
+* :func:`run_episode` plays one seeded episode and returns an :class:`EpisodeResult` (return, success,
+  time to target, final speed, max whirl amplitude, touchdown, the (Lambda, D_W) path).
+* :func:`evaluate` plays a fixed list of seeds and :func:`summarise` reduces the results to the benchmark
+  row (success rate, mean return with a 95 % confidence interval, ...).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pickle
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from agents.policies import Policy
+
+__all__ = [
+    "LearnedPolicy",
+    "EpisodeResult",
+    "run_episode",
+    "evaluate",
+    "summarise",
+    "load_learned_policies",
+    "POLICIES_DIR",
+]
+
+POLICIES_DIR = Path(__file__).resolve().parent / "policies"
+
+
+class LearnedPolicy(Policy):
+    """An SB3 model with its observation normalisation (the files ``agents.train`` writes).
+
+    Args:
+        path: a directory with ``model.zip`` (+ ``vecnormalize.pkl``, + ``run.json`` naming the algo and
+            env id), or the ``.zip`` itself.
+        algo: ``"ppo"`` or ``"sac"`` (default: from ``run.json``).
+        name: display name (default: the directory name).
+    """
+
+    kind = "learned"
+
+    def __init__(self, path: str | Path, algo: str | None = None, name: str | None = None):
+        from stable_baselines3 import PPO, SAC
+
+        p = Path(path)
+        zip_path = p / "model.zip" if p.is_dir() else p
+        d = zip_path.parent
+        if not zip_path.exists():
+            raise FileNotFoundError(f"no model at {zip_path}")
+        meta = {}
+        for mp in (d / "run.json", d / "policy.json"):
+            if mp.exists():
+                meta = json.loads(mp.read_text())
+                break
+        self.meta = meta
+        algo = (algo or meta.get("algo") or "").lower()
+        if algo not in ("ppo", "sac"):
+            raise ValueError(f"cannot tell the algorithm of {zip_path}; pass algo='ppo' or 'sac'")
+        self.algo = algo
+        self.env_id: str | None = meta.get("env_id")
+        self.model = {"ppo": PPO, "sac": SAC}[algo].load(str(zip_path), device="cpu")
+        self.obs_rms = None
+        vn = d / "vecnormalize.pkl"
+        if vn.exists():
+            with open(vn, "rb") as fh:
+                self.vecnorm = pickle.load(fh)
+            if not self.vecnorm.norm_obs:
+                self.vecnorm = None
+        else:
+            self.vecnorm = None
+        self.name = name or (d.name if p.is_dir() else zip_path.stem)
+
+    def normalize(self, obs: np.ndarray) -> np.ndarray:
+        """The observation as the model saw it in training (VecNormalize statistics, frozen)."""
+        if self.vecnorm is None:
+            return np.asarray(obs, dtype=np.float32)
+        rms, eps, clip = self.vecnorm.obs_rms, self.vecnorm.epsilon, self.vecnorm.clip_obs
+        x = (np.asarray(obs, dtype=np.float64) - rms.mean) / np.sqrt(rms.var + eps)
+        return np.clip(x, -clip, clip).astype(np.float32)
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        return self.model.predict(
+            self.normalize(observation), state=state, episode_start=episode_start, deterministic=deterministic
+        )
+
+
+def load_learned_policies(root: str | Path = POLICIES_DIR) -> list[LearnedPolicy]:
+    """Every committed policy under ``root`` (directories with a ``model.zip``), sorted by name."""
+    root = Path(root)
+    if not root.exists():
+        return []
+    return [LearnedPolicy(d) for d in sorted(root.iterdir()) if (d / "model.zip").exists()]
+
+
+@dataclass
+class EpisodeResult:
+    """Outcome of one episode."""
+
+    seed: int
+    episode_return: float
+    steps: int
+    success: bool
+    termination_reason: str | None
+    truncated: bool
+    time_to_target_s: float
+    final_speed_rpm: float
+    final_stable: bool
+    max_whirl_amplitude: float
+    touchdown: bool
+    path_bearing_number: list[float] = field(default_factory=list)
+    path_damping: list[float] = field(default_factory=list)
+    path_whirl: list[float] = field(default_factory=list)
+
+
+def run_episode(
+    env: gym.Env, policy: Policy, seed: int, record_path: bool = False, max_steps: int | None = None
+) -> EpisodeResult:
+    """Play one episode of ``env`` (reset with ``seed``) with ``policy`` (deterministic).
+
+    ``time_to_target_s`` is the rotor time at which the speed first came within the task's tolerance of
+    its target (RunUp tasks) or, for tasks without a speed target, the time of success; NaN if never.
+    """
+    policy.reset()
+    obs, info = env.reset(seed=seed)
+    u = env.unwrapped
+    lam_t = info.get("target_bearing_number")
+    tol = getattr(u, "target_tolerance", None)
+    ret, steps, t_target, max_amp = 0.0, 0, math.nan, 0.0
+    lams, dws, amps = [info["bearing_number"]], [info["foil_damping"]], [info["whirl_amplitude"]]
+    start = True
+    terminated = truncated = False
+    while True:
+        action, _ = policy.predict(obs, episode_start=np.array([start]), deterministic=True)
+        start = False
+        obs, r, terminated, truncated, info = env.step(action)
+        ret += float(r)
+        steps += 1
+        amp = float(info["whirl_amplitude"])
+        max_amp = max(max_amp, amp if math.isfinite(amp) else 0.0)
+        if record_path:
+            lams.append(info["bearing_number"])
+            dws.append(info["foil_damping"])
+            amps.append(amp)
+        if (
+            lam_t is not None
+            and tol is not None
+            and math.isnan(t_target)
+            and abs(info["bearing_number"] - lam_t) <= tol * lam_t
+        ):
+            t_target = float(info["time_s"])
+        if terminated or truncated or (max_steps is not None and steps >= max_steps):
+            break
+    reason = info.get("termination_reason")
+    success = reason == "success"
+    if lam_t is None and success:
+        t_target = float(info["time_s"])
+    touchdown = reason in ("touchdown", "solver_failure")
+    stable = (not touchdown) and float(info["whirl_amplitude"]) <= u.stable_amplitude
+    return EpisodeResult(
+        seed,
+        ret,
+        steps,
+        success,
+        reason,
+        bool(truncated),
+        t_target,
+        float(info["speed_rpm"]),
+        stable,
+        max_amp,
+        touchdown,
+        lams if record_path else [],
+        dws if record_path else [],
+        amps if record_path else [],
+    )
+
+
+def evaluate(
+    env_id: str,
+    policy: Policy,
+    seeds: list[int],
+    env_kwargs: dict | None = None,
+    record_path_seeds: tuple[int, ...] = (),
+    progress: Any = None,
+) -> list[EpisodeResult]:
+    """Play ``policy`` on ``env_id`` once per seed (a fresh env, deterministic policy)."""
+    import gfb_env.envs  # noqa: F401
+
+    env = gym.make(env_id, **(env_kwargs or {}))
+    out = []
+    try:
+        for s in seeds:
+            out.append(run_episode(env, policy, int(s), record_path=s in record_path_seeds))
+            if progress is not None:
+                progress.update(1)
+    finally:
+        env.close()
+    return out
+
+
+def summarise(results: list[EpisodeResult]) -> dict[str, float]:
+    """Benchmark row: success rate, mean return and its 95 % CI half-width (Student t), mean time to
+    target (over episodes that reached it), mean final speed of episodes that ended stable, mean of the
+    per-episode max whirl amplitude (units of C), touchdown count."""
+    from scipy import stats
+
+    n = len(results)
+    rets = np.array([r.episode_return for r in results])
+    ci = float(stats.t.ppf(0.975, n - 1) * rets.std(ddof=1) / math.sqrt(n)) if n > 1 else math.nan
+    ttt = [r.time_to_target_s for r in results if math.isfinite(r.time_to_target_s)]
+    fin = [r.final_speed_rpm for r in results if r.final_stable]
+    return {
+        "episodes": n,
+        "success_rate": float(np.mean([r.success for r in results])) if n else math.nan,
+        "mean_return": float(rets.mean()) if n else math.nan,
+        "return_ci95": ci,
+        "time_to_target_s": float(np.mean(ttt)) if ttt else math.nan,
+        "final_speed_rpm": float(np.mean(fin)) if fin else math.nan,
+        "final_stable_rate": float(np.mean([r.final_stable for r in results])) if n else math.nan,
+        "max_whirl_amplitude": float(np.mean([r.max_whirl_amplitude for r in results])) if n else math.nan,
+        "touchdowns": int(sum(r.touchdown for r in results)),
+        "mean_steps": float(np.mean([r.steps for r in results])) if n else math.nan,
+    }

@@ -1,0 +1,299 @@
+"""Run-up benchmark: every scripted baseline and every committed learned policy on every task.
+
+    python -m experiments.benchmark_agents [--episodes 50] [--quick] [--tasks ID,ID] [--agents NAME,NAME]
+                                           [--out results] [--n-jobs 1]
+
+Each (task, agent) pair plays the same fixed, seeded episodes (seeds ``10000, 10001, ...``; the env is
+reset with the seed, the policy is deterministic), and the results are reduced to one row
+(:func:`agents.evaluate.summarise`).  Writes ``<out>/benchmark_agents.csv``, ``<out>/benchmark_agents.md``
+(the Markdown table) and ``<out>/benchmark_agents_paths.png`` (each agent's first episode as a path in the
+(Lambda, D_W) plane over the stable / bistable / whirl regions of the nominal bearing's map).
+``--quick`` plays one episode per pair (for tests).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+import gfb_env.envs  # noqa: F401  (registers the ids)
+from agents.evaluate import EpisodeResult, LearnedPolicy, evaluate, load_learned_policies, summarise
+from agents.nominal_map import NominalMap
+from agents.policies import Policy, make_scripted_agents
+
+TASKS = ("gfb_env/RunUp-v0", "gfb_env/RunUpRandomized-v0", "gfb_env/WhirlRecovery-v0")
+SEED0 = 10_000
+COLUMNS = [
+    "task",
+    "agent",
+    "kind",
+    "episodes",
+    "success_rate",
+    "mean_return",
+    "return_ci95",
+    "time_to_target_s",
+    "final_speed_rpm",
+    "final_stable_rate",
+    "max_whirl_amplitude",
+    "touchdowns",
+    "mean_steps",
+    "wall_s",
+]
+
+
+def agents_for(task: str, learned: list[LearnedPolicy]) -> dict[str, Policy]:
+    """Scripted baselines (built against ``task``'s documented configuration) and the learned policies
+    trained on ``task``."""
+    env = gym.make(task)
+    out: dict[str, Policy] = dict(make_scripted_agents(env))
+    env.close()
+    for p in learned:
+        if p.env_id == task:
+            out[p.name] = p
+    return out
+
+
+def _run_pair(
+    task: str, name: str, policy: Policy, seeds: list[int]
+) -> tuple[str, str, list[EpisodeResult], float]:
+    t0 = time.perf_counter()
+    res = evaluate(task, policy, seeds, record_path_seeds=(seeds[0],))
+    return task, name, res, time.perf_counter() - t0
+
+
+def run_benchmark(
+    tasks: list[str],
+    episodes: int,
+    agent_filter: set[str] | None = None,
+    n_jobs: int = 1,
+    policies_dir: str | Path | None = None,
+) -> tuple[list[dict], dict]:
+    """Rows of the table and the recorded first-episode paths ``{(task, agent): EpisodeResult}``."""
+    from tqdm import tqdm
+
+    learned = load_learned_policies(policies_dir) if policies_dir else load_learned_policies()
+    seeds = [SEED0 + i for i in range(episodes)]
+    jobs = []
+    for task in tasks:
+        for name, pol in agents_for(task, learned).items():
+            if agent_filter and name not in agent_filter:
+                continue
+            jobs.append((task, name, pol))
+    rows, paths = [], {}
+    bar = tqdm(total=len(jobs), desc="benchmark (task, agent)", unit="pair")
+    if n_jobs > 1:
+        from joblib import Parallel, delayed
+
+        outs = Parallel(n_jobs=n_jobs, return_as="generator")(
+            delayed(_run_pair)(t, n, p, seeds) for t, n, p in jobs
+        )
+    else:
+        outs = (_run_pair(t, n, p, seeds) for t, n, p in jobs)
+    kinds = {(t, n): p.kind for t, n, p in jobs}
+    for task, name, res, wall in outs:
+        row = {
+            "task": task,
+            "agent": name,
+            "kind": kinds[(task, name)],
+            **summarise(res),
+            "wall_s": round(wall, 1),
+        }
+        rows.append(row)
+        paths[(task, name)] = res[0]
+        bar.set_postfix_str(f"{task.split('/')[-1]} {name}: {row['mean_return']:.1f}")
+        bar.update(1)
+    bar.close()
+    return rows, paths
+
+
+def _fmt(v, digits: int = 2) -> str:
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            return "-"
+        return f"{v:.{digits}f}"
+    return str(v)
+
+
+def write_csv(rows: list[dict], path: Path) -> None:
+    with path.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=COLUMNS, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow(
+                {
+                    k: ("" if isinstance(r.get(k), float) and not math.isfinite(r[k]) else r.get(k))
+                    for k in COLUMNS
+                }
+            )
+
+
+def markdown_table(rows: list[dict], episodes: int, skipped: dict[str, str]) -> str:
+    """The benchmark as Markdown (one table, grouped by task, best mean return in bold per task)."""
+    head = (
+        "| task | agent | kind | success | return (mean +- 95% CI) | time to target (s) | final stable "
+        "speed (rpm) | max whirl (C) | touchdowns |"
+    )
+    lines = [
+        f"Benchmark: {episodes} seeded episodes per (task, agent) (seeds {SEED0}...{SEED0 + episodes - 1}); "
+        "`python -m experiments.benchmark_agents`.",
+        "",
+        head,
+        "|" + "---|" * 9,
+    ]
+    for task in dict.fromkeys(r["task"] for r in rows):
+        sub = [r for r in rows if r["task"] == task]
+        best = max(r["mean_return"] for r in sub)
+        for r in sorted(sub, key=lambda r: -r["mean_return"]):
+            ret = f"{r['mean_return']:.1f} +- {_fmt(r['return_ci95'], 1)}"
+            if r["mean_return"] == best:
+                ret = f"**{ret}**"
+            lines.append(
+                f"| {task.split('/')[-1]} | {r['agent']} | {r['kind']} | {r['success_rate']:.0%} | {ret} | "
+                f"{_fmt(r['time_to_target_s'], 3)} | {_fmt(r['final_speed_rpm'], 0)} | "
+                f"{_fmt(r['max_whirl_amplitude'], 3)} | {r['touchdowns']}/{r['episodes']} |"
+            )
+    for task, why in skipped.items():
+        lines.append(f"\n{task}: not benchmarked ({why}).")
+    lines += [
+        "",
+        "Columns: success = share of episodes ending in `success`; time to target = rotor time until the "
+        "speed is first within the task's tolerance of its target (WhirlRecovery: time of success), mean "
+        "over the episodes that got there; final stable speed = mean end speed of the episodes that ended "
+        "without whirl or touchdown; max whirl = mean over episodes of the largest whirl amplitude "
+        "(units of the clearance C); touchdowns include solver failures.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> None:
+    """First-episode path of every agent in the (Lambda, D_W) plane over the nominal map's regions."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(tasks)
+    fig, axes = plt.subplots(1, n, figsize=(5.2 * n, 4.6), squeeze=False)
+    d = np.geomspace(nmap.damping.min(), nmap.damping.max(), 200)
+    lc = np.array([nmap.critical_at(x) for x in d])
+    lf = np.array([nmap.fold_at(x) for x in d])
+    names = sorted({a for (_, a) in paths})
+    colors = {a: plt.cm.tab10(i % 10) for i, a in enumerate(names)}
+    for ax, task in zip(axes[0], tasks):
+        x0, x1 = 0.40, 0.80
+        ax.fill_betweenx(
+            d, x0, np.where(np.isfinite(lf), lf, lc), color="#cfe8cf", label="stable (equilibrium only)"
+        )
+        if np.isfinite(lf).any():
+            ax.fill_betweenx(
+                d,
+                np.where(np.isfinite(lf), lf, lc),
+                lc,
+                color="#ffe9a8",
+                label="bistable (equilibrium + whirl)",
+            )
+        ax.fill_betweenx(d, lc, x1, color="#f6c6c6", label="whirl only (above $\\Lambda_c$)")
+        ax.plot(lc, d, "k-", lw=1)
+        if np.isfinite(lf).any():
+            ax.plot(lf, d, "k--", lw=1)
+        for (t, a), r in paths.items():
+            if t != task or not r.path_bearing_number:
+                continue
+            lam, dw = np.asarray(r.path_bearing_number), np.asarray(r.path_damping)
+            ax.plot(
+                lam,
+                dw,
+                "-",
+                color=colors[a],
+                lw=1.3,
+                alpha=0.9,
+                label=f"{a} ({r.termination_reason or 'time'})",
+            )
+            ax.plot(lam[0], dw[0], "o", color=colors[a], ms=3)
+            ax.plot(lam[-1], dw[-1], "s" if r.success else "x", color=colors[a], ms=5)
+        ax.set_yscale("log")
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(d.min(), d.max())
+        ax.set_xlabel(r"bearing number $\Lambda$")
+        ax.set_ylabel(r"foil damping $D_W$")
+        title = task.split("/")[-1]
+        if "Randomized" in task:
+            title += " (drawn bearing's $\\Lambda$; map of the nominal bearing)"
+        ax.set_title(title, fontsize=9)
+        ax.legend(fontsize=5.5, loc="lower left")
+    fig.suptitle(
+        "Agent paths (first benchmark episode) over the nominal bearing's stability / hysteresis map "
+        "(o start, s success, x other end)",
+        fontsize=9,
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="python -m experiments.benchmark_agents", description=__doc__.splitlines()[0]
+    )
+    ap.add_argument("--episodes", type=int, default=50, help="seeded episodes per (task, agent) (>= 1)")
+    ap.add_argument("--quick", action="store_true", help="one episode per pair (for tests)")
+    ap.add_argument("--tasks", default=None, help=f"comma-separated env ids (default: {','.join(TASKS)})")
+    ap.add_argument("--agents", default=None, help="comma-separated agent names (default: all)")
+    ap.add_argument("--out", default="results", help="output directory")
+    ap.add_argument(
+        "--policies", default=None, help="directory of committed policies (default agents/policies)"
+    )
+    ap.add_argument("--n-jobs", type=int, default=1, help="parallel (task, agent) pairs, at most 2")
+    a = ap.parse_args(argv)
+    episodes = 1 if a.quick else a.episodes
+    if episodes < 1:
+        ap.error(f"--episodes must be >= 1, got {a.episodes}")
+    if not 1 <= a.n_jobs <= 2:
+        ap.error(f"--n-jobs must be 1 or 2 (two shared cores), got {a.n_jobs}")
+    tasks = a.tasks.split(",") if a.tasks else list(TASKS)
+    for t in tasks:
+        if t not in gym.registry:
+            ap.error(f"unknown task {t!r}; known: {', '.join(TASKS)}")
+    skipped = {}
+    usable = []
+    for t in tasks:
+        try:
+            gym.make(t).close()
+            usable.append(t)
+        except Exception as exc:  # noqa: BLE001 - a task that cannot be built is reported, not fatal
+            skipped[t] = f"{type(exc).__name__}: {exc}"
+            print(f"skipping {t}: {exc}")
+    if not usable:
+        ap.error("no task can be built")
+    t0 = time.perf_counter()
+    rows, paths = run_benchmark(
+        usable, episodes, set(a.agents.split(",")) if a.agents else None, a.n_jobs, a.policies
+    )
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv(rows, out / "benchmark_agents.csv")
+    (out / "benchmark_agents.md").write_text(markdown_table(rows, episodes, skipped))
+    env = gym.make(usable[0])
+    plot_paths(paths, NominalMap.from_env(env), out / "benchmark_agents_paths.png", usable)
+    env.close()
+    meta = {
+        "episodes": episodes,
+        "seeds": [SEED0, SEED0 + episodes - 1],
+        "tasks": usable,
+        "skipped": skipped,
+        "wall_time_s": round(time.perf_counter() - t0, 1),
+    }
+    (out / "benchmark_agents.json").write_text(json.dumps(meta, indent=2))
+    print((out / "benchmark_agents.md").read_text())
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,14 +1,11 @@
-"""Minimal private stability helper for the environments.
+"""Stability constants of the tasks, on top of :mod:`gfb_env.analysis`.
 
-TEMPORARY: to be replaced by ``gfb_env.analysis`` (equilibrium continuation and
-``critical_bearing_number``) once that module lands.  It is used only by the scripts that precompute
-the task constants (``experiments/env_task_constants.py``, ``experiments/env_grid_tradeoff.py``) and by
-tests; never inside ``reset()``.
+Used only by the scripts that precompute the task constants (``experiments/env_task_constants.py``)
+and, for a grid that is not tabulated, once in an environment's constructor; never inside ``reset()``.
 
-Method (paper Sect. 3.2): static equilibrium ``k(s0, Lambda) = 0`` by :func:`find_equilibrium`
-(warm-started along Lambda), then the spectral abscissa ``max Re(lambda_i)`` of the dense Jacobian
-``J_k(s0, Lambda, D_W)``; the critical bearing number ``Lambda_c`` is the root of the spectral abscissa
-in Lambda, found by a coarse scan followed by bisection.
+Method (paper Sect. 3.2): ``Lambda_c(D_W)`` by :func:`gfb_env.analysis.critical_bearing_number`
+(eigenvalues of the Jacobian at the static equilibrium, scan + Brent root of the growth rate); its
+maximum over ``log D_W`` by a scan and a golden-section refinement; a developed whirl by simulation.
 """
 
 from __future__ import annotations
@@ -17,25 +14,18 @@ import math
 
 import numpy as np
 
-from gfb_env.integrator import EquilibriumError, find_equilibrium
+from gfb_env.analysis import NoCriticalPointError, NoStableEquilibriumError, jacobian_eigenvalues
+from gfb_env.analysis import critical_bearing_number as _analysis_critical_bearing_number
+from gfb_env.integrator import find_equilibrium
 from gfb_env.model import GFBModel
 
 __all__ = [
-    "spectral_abscissa",
     "critical_bearing_number",
+    "critical_bearing_numbers_on_grid",
     "best_stable_bearing_number",
     "developed_whirl_state",
     "task_constants",
 ]
-
-
-def spectral_abscissa(
-    model: GFBModel, bearing_number: float, foil_damping: float, guess: np.ndarray | None = None
-) -> tuple[float, np.ndarray]:
-    """``max Re(lambda_i)`` of the Jacobian at the static equilibrium, and that equilibrium."""
-    s0 = find_equilibrium(model, bearing_number, guess=guess)
-    J = model.jacobian(s0, bearing_number, foil_damping).toarray()
-    return float(np.linalg.eigvals(J).real.max()), s0
 
 
 def critical_bearing_number(
@@ -46,31 +36,68 @@ def critical_bearing_number(
     scan_step: float = 0.05,
     tol: float = 1e-4,
 ) -> float:
-    """Lowest ``Lambda`` in ``[lam_min, lam_max]`` where the equilibrium loses stability (``nan`` if
-    it is stable on the whole range, ``lam_min`` if it is already unstable there)."""
-    guess = None
-    lam_prev, s_prev = None, None
-    lam = lam_min
-    while lam <= lam_max + 1e-12:
-        try:
-            a, s = spectral_abscissa(model, lam, foil_damping, guess)
-        except EquilibriumError:
-            return lam if lam_prev is None else lam_prev
-        if a > 0:
-            if lam_prev is None:
-                return lam_min
-            lo, hi, g = lam_prev, lam, s_prev
-            while hi - lo > tol:
-                mid = 0.5 * (lo + hi)
-                am, sm = spectral_abscissa(model, mid, foil_damping, g)
-                if am > 0:
-                    hi = mid
+    """``Lambda_c`` in ``[lam_min, lam_max]`` as a float (``lam_min`` if no scanned equilibrium is
+    stable, ``nan`` if stable on the whole range)."""
+    try:
+        cp = _analysis_critical_bearing_number(
+            model, foil_damping, bearing_range=(lam_min, lam_max), scan_step=scan_step, xtol=tol
+        )
+    except NoStableEquilibriumError:
+        return lam_min
+    except NoCriticalPointError:
+        return math.nan
+    return cp.critical_bearing_number
+
+
+def critical_bearing_numbers_on_grid(
+    model: GFBModel,
+    dampings: np.ndarray,
+    lam_min: float = 0.3,
+    lam_max: float = 2.0,
+    lam_step: float = 0.02,
+) -> np.ndarray:
+    """``Lambda_c`` for many dampings at once (fast, for tables).
+
+    The static equilibrium does not depend on D_W (Q' = 0), so one equilibrium per Lambda (warm-started
+    along a grid of step ``lam_step``) serves every damping; the growth rate ``max Re(lambda)`` of each
+    damping is evaluated on the grid and its first zero crossing is located by linear interpolation
+    (error ~ curvature * lam_step^2, below 1e-3 at the default step; checked against
+    :func:`gfb_env.analysis.critical_bearing_number` in ``docs/envs.md``).  The scan stops once every
+    damping is unstable.  ``nan``: stable up to ``lam_max``; ``lam_min``: unstable from the start."""
+    ds = np.asarray(dampings, dtype=float)
+    out = np.full(ds.shape, np.nan)
+    prev = np.full(ds.shape, np.nan)
+    s = None
+    lam_prev = None
+    for lam in np.arange(lam_min, lam_max + 0.5 * lam_step, lam_step):
+        s = find_equilibrium(model, float(lam), guess=s)
+        g = np.array([jacobian_eigenvalues(model, s, float(lam), float(d))[0].real for d in ds])
+        for j in range(len(ds)):
+            if not np.isnan(out[j]):
+                continue
+            if g[j] >= 0:
+                if lam_prev is None:
+                    out[j] = lam_min
                 else:
-                    lo, g = mid, sm
-            return 0.5 * (lo + hi)
-        lam_prev, s_prev, guess = lam, s, s
-        lam += scan_step
-    return math.nan
+                    out[j] = lam_prev + (float(lam) - lam_prev) * prev[j] / (prev[j] - g[j])
+        prev, lam_prev = g, float(lam)
+        if np.all(~np.isnan(out)):
+            break
+    return out
+
+
+def best_from_curve(dampings: np.ndarray, lambda_c: np.ndarray) -> tuple[float, float]:
+    """Optimum damping and ``max Lambda_c``: parabola in ``log D_W`` through the best point and its
+    neighbours (the best grid point at the ends of the range)."""
+    d, lc = np.asarray(dampings, float), np.asarray(lambda_c, float)
+    j = int(np.nanargmax(lc))
+    if 0 < j < len(d) - 1 and np.all(np.isfinite(lc[j - 1 : j + 2])):
+        x = np.log(d[j - 1 : j + 2])
+        c = np.polyfit(x, lc[j - 1 : j + 2], 2)
+        if c[0] < 0:
+            xv = -c[1] / (2 * c[0])
+            return float(np.exp(xv)), float(np.polyval(c, xv))
+    return float(d[j]), float(lc[j])
 
 
 _GOLD = (math.sqrt(5) - 1) / 2
@@ -163,9 +190,21 @@ def developed_whirl_state(
 WHIRL_FACTOR = 1.07
 
 
-def task_constants(model: GFBModel, d_min: float = 0.1, d_max: float = 10.0, tol: float = 2e-4) -> dict:
-    """Everything the nominal tasks need on one grid (see ``experiments/env_task_constants.py``)."""
-    entry = best_stable_bearing_number(model, d_min, d_max, tol=tol)
-    lam_w = round(WHIRL_FACTOR * entry["lambda_best"], 4)
-    entry["whirl"] = developed_whirl_state(model, lam_w, entry["d_opt"])
+def task_constants(model: GFBModel, d_min: float = 0.1, d_max: float = 10.0) -> dict:
+    """Everything the nominal tasks need on one grid (see ``experiments/env_task_constants.py``):
+    ``Lambda_c`` on 25 log-spaced dampings (Lambda step 0.01), the optimum damping ``d_opt`` and
+    ``lambda_best``, and a developed whirl state at ``WHIRL_FACTOR * lambda_best``."""
+    ds = np.geomspace(d_min, d_max, 25)
+    lc = critical_bearing_numbers_on_grid(model, ds, lam_min=0.3, lam_step=0.01)
+    d_opt, best = best_from_curve(ds, lc)
+    entry = {
+        "lambda_best": best,
+        "d_opt": d_opt,
+        "lambda_c_dmin": float(lc[0]),
+        "lambda_c_dmax": float(lc[-1]),
+        "curve_d": ds.tolist(),
+        "curve_lambda_c": lc.tolist(),
+    }
+    lam_w = round(WHIRL_FACTOR * best, 4)
+    entry["whirl"] = developed_whirl_state(model, lam_w, d_opt)
     return entry

@@ -33,7 +33,7 @@ def nominal_constants(grid: Grid, bearing: BearingParameters) -> dict:
     key = (str(grid), tuple(sorted(bearing.as_dict().items())))
     if key not in _COMPUTED:
         gym.logger.warn(f"task constants for grid {grid} are not tabulated; computing them (slow, once)")
-        _COMPUTED[key] = task_constants(viscoelastic_model(grid, bearing), tol=1e-3)
+        _COMPUTED[key] = task_constants(viscoelastic_model(grid, bearing))
     return _COMPUTED[key]
 
 

@@ -1,0 +1,130 @@
+"""Benchmark of the Gymnasium environments (``docs/envs.md``).
+
+Prints, for each registered task on one core, env steps per second and simulated (rotor) seconds per
+wall-clock second under a seeded random policy, a vector env on two cores (``gymnasium.make_vec``,
+async), and the wall time of one full default RunUp-v0 episode with the scripted ramp policy
+(``RunUpEnv.scripted_action``: full motor rate toward the target at the optimum damping), plus the
+worst case (full speed with the least damping: whirl to touchdown).  The last line is JSON.  Run::
+
+    OMP_NUM_THREADS=1 .venv/bin/python experiments/bench_env.py [--steps 40]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import gfb_env.envs  # noqa: F401  (registers the ids)
+from gfb_env.envs import ENV_IDS
+
+
+def _episode(env: gym.Env, policy, seed: int, max_steps: int | None = None) -> dict:
+    u = env.unwrapped
+    t0 = time.perf_counter()
+    env.reset(seed=seed)
+    t_reset = time.perf_counter() - t0
+    n, ret, info = 0, 0.0, {}
+    t0 = time.perf_counter()
+    while True:
+        _, r, term, trunc, info = env.step(policy(u))
+        n += 1
+        ret += float(r)
+        if term or trunc or (max_steps is not None and n >= max_steps):
+            break
+    wall = time.perf_counter() - t0
+    sim_s = info["time_s"]
+    return {
+        "steps": n,
+        "wall_s": wall,
+        "reset_s": t_reset,
+        "steps_per_s": n / wall,
+        "sim_s": sim_s,
+        "sim_s_per_wall_s": sim_s / wall,
+        "return": ret,
+        "reason": info["termination_reason"] or ("time_limit" if n >= env.spec.max_episode_steps else "cut"),
+        "speed_rpm": info["speed_rpm"],
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--steps", type=int, default=40, help="control steps per random-policy run")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    results: dict = {"single_core": {}, "vector_2_cores": {}}
+
+    rng = np.random.default_rng(args.seed)
+
+    def random_policy(u):
+        return rng.uniform(-1, 1, 2).astype(np.float32)
+
+    rows = []
+    for env_id in ENV_IDS:
+        env = gym.make(env_id)
+        _episode(env, random_policy, args.seed, 2)  # warm-up (numba caches, constants)
+        r = _episode(env, random_policy, args.seed, args.steps)
+        results["single_core"][env_id] = r
+        rows.append((env_id, "random", r))
+        env.close()
+
+    env = gym.make("gfb_env/RunUp-v0")
+    full = _episode(env, lambda u: u.scripted_action(), args.seed)
+    rows.append(("gfb_env/RunUp-v0", "scripted (full)", full))
+    results["runup_scripted_episode"] = full
+    worst = _episode(env, lambda u: np.array([1.0, -1.0], np.float32), args.seed)
+    rows.append(("gfb_env/RunUp-v0", "a=[1,-1] (full)", worst))
+    results["runup_worst_episode"] = worst
+    env.close()
+
+    env = gym.make("gfb_env/WhirlRecovery-v0")
+    rec = _episode(env, lambda u: u.scripted_action(), args.seed)
+    rows.append(("gfb_env/WhirlRecovery-v0", "scripted (full)", rec))
+    results["whirl_recovery_scripted_episode"] = rec
+    env.close()
+
+    for env_id in ("gfb_env/RunUp-v0", "gfb_env/WhirlRecovery-v0"):
+        envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="async")
+        envs.reset(seed=args.seed)
+        envs.step(envs.action_space.sample())
+        t0 = time.perf_counter()
+        sim = 0.0
+        for _ in range(args.steps):
+            _, _, _, _, info = envs.step(rng.uniform(-1, 1, (2, 2)).astype(np.float32))
+        wall = time.perf_counter() - t0
+        sim = (
+            2
+            * args.steps
+            * envs.get_attr("control_interval")[0]
+            * envs.get_attr("nominal_bearing")[0].time_scale_s
+        )
+        results["vector_2_cores"][env_id] = {
+            "env_steps": 2 * args.steps,
+            "wall_s": wall,
+            "steps_per_s": 2 * args.steps / wall,
+            "sim_s_per_wall_s": sim / wall,
+        }
+        envs.close()
+
+    print(
+        f"{'task':28} {'policy':18} {'steps':>5} {'wall s':>7} {'steps/s':>8} {'sim s/wall s':>12} "
+        f"{'return':>8} {'end':>14}"
+    )
+    for env_id, pol, r in rows:
+        print(
+            f"{env_id:28} {pol:18} {r['steps']:5d} {r['wall_s']:7.2f} {r['steps_per_s']:8.1f} "
+            f"{r['sim_s_per_wall_s']:12.3f} {r['return']:8.2f} {r['reason']:>14}"
+        )
+    for env_id, r in results["vector_2_cores"].items():
+        print(
+            f"{env_id:28} {'random, 2 async':18} {r['env_steps']:5d} {r['wall_s']:7.2f} "
+            f"{r['steps_per_s']:8.1f} {r['sim_s_per_wall_s']:12.3f}"
+        )
+    print(json.dumps(results))
+
+
+if __name__ == "__main__":
+    main()

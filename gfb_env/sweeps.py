@@ -155,6 +155,11 @@ def run_sweep(
         if k not in done and k not in seen:
             todo.append(p)
             seen.add(k)
+    if checkpoint is not None and Path(checkpoint).exists() and Path(checkpoint).stat().st_size:
+        with open(checkpoint, "rb+") as raw:  # terminate a line truncated by an interruption
+            raw.seek(-1, os.SEEK_END)
+            if raw.read(1) != b"\n":
+                raw.write(b"\n")
     fh = open(checkpoint, "a") if checkpoint is not None else None  # noqa: SIM115
     try:
         bar = tqdm(total=len(todo), desc=desc, disable=not progress or not todo)

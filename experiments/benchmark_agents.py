@@ -186,6 +186,7 @@ def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> N
     lf = np.array([nmap.fold_at(x) for x in d])
     names = sorted({a for (_, a) in paths})
     colors = {a: plt.cm.tab10(i % 10) for i, a in enumerate(names)}
+    styles = {a: ("-", "--", ":", "-.")[i % 4] for i, a in enumerate(names)}
     for ax, task in zip(axes[0], tasks):
         x0, x1 = 0.40, 0.80
         ax.fill_betweenx(
@@ -210,7 +211,7 @@ def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> N
             ax.plot(
                 lam,
                 dw,
-                "-",
+                styles[a],
                 color=colors[a],
                 lw=1.3,
                 alpha=0.9,
@@ -226,6 +227,8 @@ def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> N
         title = task.split("/")[-1]
         if "Randomized" in task:
             title += " (drawn bearing's $\\Lambda$; map of the nominal bearing)"
+        if not np.isfinite(lf).any():
+            title += "\n(fold of cycles not mapped for this foil: bistable band not drawn)"
         ax.set_title(title, fontsize=9)
         ax.legend(fontsize=5.5, loc="lower left")
     fig.suptitle(

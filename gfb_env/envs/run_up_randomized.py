@@ -8,11 +8,12 @@ import math
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
-from gfb_env.envs._data import load_task_constants
+from gfb_env.envs._data import NOMINAL_BEARING, load_task_constants
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, viscoelastic_model
 from gfb_env.envs.run_up import RunUpEnv
 from gfb_env.integrator import find_equilibrium
 from gfb_env.model import Grid
+from gfb_env.params import BearingParameters
 
 __all__ = ["RunUpRandomizedEnv", "BestStableSpeedTable"]
 
@@ -144,18 +145,20 @@ class RunUpRandomizedEnv(RunUpEnv):
         self.stiffness_factor_range = ranges["stiffness_factor_range"]
         self.load_range_n = ranges["load_range_n"]
         if start_speed_rpm is None:
-            start_speed_rpm = round(0.85 * self.lowest_critical_speed_rpm(), -2)
+            nominal = kwargs.get("nominal_bearing") or NOMINAL_BEARING
+            start_speed_rpm = round(0.85 * self.lowest_critical_speed_rpm(nominal), -2)
         kwargs.setdefault("max_acceleration_rpm_per_s", 30_000.0)
         super().__init__(start_speed_rpm=start_speed_rpm, grid=grid, **kwargs)
-        self._draw = None
+        self._drawn = None
         self._models: dict = {}
 
-    def lowest_critical_speed_rpm(self) -> float:
+    def lowest_critical_speed_rpm(self, nominal: BearingParameters | None = None) -> float:
         """Lowest speed (rpm) at which a bearing of the ranges loses stability with the least damping
         (min over the corners and the centre of the parameter box; Lambda_c is monotonic in each)."""
+        nominal = nominal if nominal is not None else self.nominal_bearing
         speeds = []
         for c in (*self.clearance_range_m, 0.5 * sum(self.clearance_range_m)):
-            b = self.nominal_bearing.replace(clearance_m=c)
+            b = nominal.replace(clearance_m=c)
             for fk in (*self.stiffness_factor_range, 0.5 * sum(self.stiffness_factor_range)):
                 for fl in (*self.load_range_n, 0.5 * sum(self.load_range_n)):
                     speeds.append(b.speed_rpm_at(self.table(c, fk, fl)["lambda_c_dmin"]))
@@ -169,7 +172,7 @@ class RunUpRandomizedEnv(RunUpEnv):
     def _extra_observation(self):
         if not self.observe_parameters:
             return None
-        c, fk, fl = self._draw
+        c, fk, fl = self._drawn
         nb = self.nominal_bearing
         return np.array([c / nb.clearance_m, fk, fl / nb.external_load_per_bearing_n])
 
@@ -185,7 +188,7 @@ class RunUpRandomizedEnv(RunUpEnv):
         b = self.nominal_bearing.replace(clearance_m=c, external_load_per_bearing_n=fl)
         key = (c, fk, fl)
         model = viscoelastic_model(self.grid, b, foil_stiffness=fk * b.foil_stiffness)
-        self._draw = key
+        self._drawn = key
         best = self.table(c, fk, fl)
         lam0 = b.bearing_number_at(self.start_speed_rpm)
         # the target never exceeds 98 % of the top speed (a very stiff, heavily loaded draw)
@@ -213,11 +216,11 @@ class RunUpRandomizedEnv(RunUpEnv):
         return EpisodeSetup(model, s, lam0, dw, b, info)
 
     def _task_state(self) -> dict:
-        return {**super()._task_state(), "draw": self._draw, "d_opt": self._d_opt}
+        return {**super()._task_state(), "draw": self._drawn, "d_opt": self._d_opt}
 
     def _set_task_state(self, state: dict) -> None:
         super()._set_task_state(state)
-        self._draw, self._d_opt = state["draw"], state["d_opt"]
+        self._drawn, self._d_opt = state["draw"], state["d_opt"]
 
     def scripted_action(self, ramp: float = 1.0) -> np.ndarray:
         """Oracle expert (knows the drawn bearing): ramp to the target with its optimum damping."""

@@ -84,6 +84,12 @@ def main() -> None:
     rec = _episode(env, lambda u: u.scripted_action(), args.seed)
     rows.append(("gfb_env/WhirlRecovery-v0", "scripted (full)", rec))
     results["whirl_recovery_scripted_episode"] = rec
+    # worst case for wall time: a developed whirl for a whole episode (speed held, optimum damping)
+    whirl = _episode(
+        env, lambda u: np.array([0.0, u.action_from_damping(u.whirl_damping)], np.float32), args.seed
+    )
+    rows.append(("gfb_env/WhirlRecovery-v0", "hold whirl (full)", whirl))
+    results["whirl_held_episode"] = whirl
     env.close()
 
     for env_id in ("gfb_env/RunUp-v0", "gfb_env/WhirlRecovery-v0"):

@@ -29,7 +29,13 @@ import time
 import numpy as np
 
 from gfb_env.envs._data import NOMINAL_BEARING, TASK_CONSTANTS_PATH
-from gfb_env.envs._stability import best_from_curve, critical_bearing_numbers_on_grid, task_constants
+from gfb_env.envs._stability import (
+    WHIRL_FACTOR,
+    best_from_curve,
+    critical_bearing_numbers_on_grid,
+    developed_whirl_state,
+    task_constants,
+)
 from gfb_env.model import GFBModel, Grid
 
 D_MIN, D_MAX = 0.1, 10.0
@@ -41,6 +47,7 @@ def main() -> None:
     ap.add_argument("--grids", default="31x7,79x7")
     ap.add_argument("--default-grid", default="31x7")
     ap.add_argument("--no-table", action="store_true")
+    ap.add_argument("--whirl-only", action="store_true", help="recompute only the whirl start of --grids")
     args = ap.parse_args()
     out = {
         "bearing": NOMINAL_BEARING.as_dict(),
@@ -58,8 +65,14 @@ def main() -> None:
     for g in filter(None, args.grids.split(",")):
         t0 = time.perf_counter()
         model = GFBModel("viscoelastic", Grid.parse(g), bearing=NOMINAL_BEARING)
-        entry = task_constants(model, D_MIN, D_MAX)
-        entry["seconds"] = time.perf_counter() - t0
+        if args.whirl_only:
+            entry = dict(out["nominal"][g])
+            lam_w = round(WHIRL_FACTOR * entry["lambda_best"], 4)
+            entry["whirl"] = developed_whirl_state(model, lam_w, entry["d_opt"])
+        else:
+            entry = task_constants(model, D_MIN, D_MAX)
+        if not args.whirl_only:
+            entry["seconds"] = time.perf_counter() - t0
         out["nominal"][g] = entry
         print(
             g,

@@ -46,15 +46,15 @@ class RunUpEnv(GFBEnv):
     ## Description
 
     A rigid rotor (half of it, per bearing) runs on a first-generation bump-type gas foil bearing
-    (Leister, Baum & Seemann 2017; Table 1 with a softer bump foil, ``K_W = 0.50``).  Above the
+    (Leister, Baum & Seemann 2017; Table 1 with a softer bump foil, ``K_W = 0.50``). Above the
     critical bearing number ``Lambda_c`` the static equilibrium loses stability through a subcritical
     Hopf bifurcation and the journal whirls at about half the rotor speed, on a limit cycle that can
-    reach the foil (touchdown).  ``Lambda_c`` depends on the foil damping ``D_W`` (paper Fig. 4): on the
-    default grid it is 0.590 at ``D_W = 0.1``, 0.659 at ``D_W = 1`` and at most
-    ``lambda_best = 0.7015`` at the optimum ``D_W ~ 2.3``.  The target speed is
-    ``target_fraction * lambda_best`` (default 0.95: 0.666, ~39 990 rpm), reachable without whirl only
-    with a damping of roughly 1.3 to 4.  The agent commands the speed ramp (a motor acceleration
-    limit) and the foil damping (e.g. a controllable friction or squeeze-film damper).
+    reach the foil (touchdown). ``Lambda_c`` depends on the foil damping ``D_W`` (paper Fig. 4): on
+    the default grid it is 0.590 at ``D_W = 0.1``, 0.659 at ``D_W = 1`` and at most ``lambda_best =
+    0.7014`` at the optimum ``D_W = 2.24`` (paper grid 79x7: 0.7074). The target is ``target_fraction
+    * lambda_best`` (default 0.95: Lambda_t = 0.6663, 40 010 rpm), reachable without whirl only with a
+    damping of about 1.1 to 4.0. The agent commands the speed ramp (a motor acceleration limit) and
+    the foil damping (e.g. a controllable friction or squeeze-film damper).
 
     ## Action Space
 

@@ -20,15 +20,16 @@ class WhirlRecoveryEnv(GFBEnv):
 
     ## Description
 
-    Same plant, actions and observations as ``gfb_env/RunUp-v0`` (nominal bearing, ``K_W = 0.50``).
-    The episode starts on the developed whirl limit cycle at ``Lambda_w = 1.07 lambda_best = 0.7506``
-    (45 070 rpm on the default grid) with the optimum damping ``D_W ~ 2.3``: above the best critical
-    bearing number ``lambda_best = 0.7015`` no damping stabilises the equilibrium.  The orbit reaches
-    an eccentricity of 1.27 C and a min film of 0.15 C.  Because the Hopf bifurcation is subcritical,
-    the whirl persists below ``Lambda_c`` down to the fold of the limit cycles (hysteresis): the
-    agent has to slow down into the band where the cycle no longer exists (and choose the damping
-    that shrinks that band), then may speed up again to just below ``Lambda_c`` as long as the
-    equilibrium stays stable.  Bad damping can grow the orbit into a touchdown.
+    Same plant, actions and observations as ``gfb_env/RunUp-v0`` (nominal bearing, ``K_W = 0.50``). The
+    episode starts on the developed whirl limit cycle at ``Lambda_w = 1.03 lambda_best = 0.7225`` (43.4 krpm
+    on the default grid) with the optimum damping ``D_W = 2.24``: above the best critical
+    bearing number ``lambda_best = 0.7014`` no damping stabilises the equilibrium. The orbit reaches
+    an eccentricity of 1.11 C and a min film of 0.27 C; a damping far from the optimum (0.1 or 10)
+    grows it into a touchdown within 460-1000 tau (8-16 control steps). Because the Hopf bifurcation
+    is subcritical, the whirl persists below ``Lambda_c`` down to the fold of the limit cycles
+    (hysteresis): the agent has to slow down into the band where the cycle no longer exists (and
+    choose the damping that shrinks that band), then may speed up again to just below ``Lambda_c`` as
+    long as the equilibrium stays stable. Bad damping can grow the orbit into a touchdown.
 
     ## Action Space
 
@@ -57,7 +58,7 @@ class WhirlRecoveryEnv(GFBEnv):
     ## Starting State
 
     The stored limit-cycle state (``data/task_constants.json``) advanced by a random phase, uniform
-    over one whirl period (~25 tau), at ``Lambda_w`` and ``D_W = d_opt``.
+    over one whirl period (25.6 tau), at ``Lambda_w`` and ``D_W = d_opt``.
 
     ## Episode End
 

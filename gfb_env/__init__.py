@@ -15,6 +15,8 @@ import os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+# Registers gfb_env/RunUp-v0, gfb_env/RunUpRandomized-v0, gfb_env/WhirlRecovery-v0 with gymnasium.
+import gfb_env.envs  # noqa: E402, F401
 from gfb_env.integrator import (  # noqa: E402
     AdvanceResult,
     EquilibriumError,

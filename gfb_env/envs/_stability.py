@@ -22,7 +22,6 @@ from gfb_env.model import GFBModel
 __all__ = [
     "critical_bearing_number",
     "critical_bearing_numbers_on_grid",
-    "best_stable_bearing_number",
     "developed_whirl_state",
     "task_constants",
 ]
@@ -98,55 +97,6 @@ def best_from_curve(dampings: np.ndarray, lambda_c: np.ndarray) -> tuple[float, 
             xv = -c[1] / (2 * c[0])
             return float(np.exp(xv)), float(np.polyval(c, xv))
     return float(d[j]), float(lc[j])
-
-
-_GOLD = (math.sqrt(5) - 1) / 2
-
-
-def best_stable_bearing_number(
-    model: GFBModel,
-    d_min: float = 0.1,
-    d_max: float = 10.0,
-    tol: float = 2e-4,
-    n_scan: int = 9,
-    n_golden: int = 8,
-) -> dict:
-    """``lambda_best = max over D_W in [d_min, d_max] of Lambda_c(D_W)`` and the optimum damping, by a
-    scan in log D_W and a golden-section refinement around the best scan point.
-
-    Returns ``lambda_best``, ``d_opt``, ``lambda_c_dmin``, ``lambda_c_dmax`` and the scanned curve."""
-
-    def lc(logd: float) -> float:
-        return critical_bearing_number(
-            model, math.exp(logd), lam_min=0.25, lam_max=2.5, scan_step=0.05, tol=tol
-        )
-
-    logd = np.linspace(math.log(d_min), math.log(d_max), n_scan)
-    vals = [lc(x) for x in logd]
-    k = int(np.nanargmax(vals))
-    a, b = logd[max(k - 1, 0)], logd[min(k + 1, n_scan - 1)]
-    c, d = b - _GOLD * (b - a), a + _GOLD * (b - a)
-    fc, fd = lc(c), lc(d)
-    for _ in range(n_golden):
-        if fc > fd:
-            b, d, fd = d, c, fc
-            c = b - _GOLD * (b - a)
-            fc = lc(c)
-        else:
-            a, c, fc = c, d, fd
-            d = a + _GOLD * (b - a)
-            fd = lc(d)
-    best_logd, best = (c, fc) if fc > fd else (d, fd)
-    if vals[k] > best:
-        best_logd, best = logd[k], vals[k]
-    return {
-        "lambda_best": float(best),
-        "d_opt": float(math.exp(best_logd)),
-        "lambda_c_dmin": float(vals[0]),
-        "lambda_c_dmax": float(vals[-1]),
-        "curve_d": [float(math.exp(x)) for x in logd],
-        "curve_lambda_c": [float(v) for v in vals],
-    }
 
 
 def developed_whirl_state(

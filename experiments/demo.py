@@ -6,7 +6,10 @@ Stages (each writes into ``--out``):
 3. A transient run of the viscoelastic bearing (K_W = 1, D_W = 1, Lambda = 0.6) from the slightly
    perturbed equilibrium into the self-excited whirl: ``simulate/trajectory.csv``, ``simulation.png``,
    ``summary.json`` (the same as ``gfb simulate``).
-Later stages (stability map, environments, agents) are added by their modules when present.
+4. Linear stability: the critical bearing number Lambda_c of the rigid foil and of the viscoelastic
+   foil (K_W = 1) at two dampings (``critical.json``), as ``gfb critical`` computes it.
+5. The control task: one seeded ``gfb_env/RunUp-v0`` episode flown by the map-informed scripted
+   agent, with its path and a rendered frame (``runup_episode.json``, ``runup_frame.png``).
 """
 
 from __future__ import annotations
@@ -70,8 +73,63 @@ def run(out: Path, duration: float) -> dict:
     if code != 0:
         raise SystemExit(code)
     summary = json.loads((out / "simulate" / "summary.json").read_text())
+    summary["critical"] = critical_stage(out)
+    summary["runup_episode"] = runup_stage(out)
     print(f"== demo done in {time.perf_counter() - t0:.1f} s; outputs in {out}")
     return summary
+
+
+def critical_stage(out: Path) -> list[dict]:
+    from gfb_env.analysis import critical_bearing_number
+
+    rows = []
+    for structure, kw, dw in (("rigid", None, 1.0), ("viscoelastic", 1.0, 1.0), ("viscoelastic", 1.0, 4.0)):
+        cp = critical_bearing_number(GFBModel(structure, foil_stiffness=kw), foil_damping=dw)
+        rows.append(cp.as_dict())
+        print(
+            f"== Lambda_c {structure:>12} K_W={cp.foil_stiffness:.3g} D_W={dw:g}: "
+            f"{cp.critical_bearing_number:.4f} ({cp.critical_speed_rpm:.0f} rpm), "
+            f"whirl ratio {cp.whirl_frequency_ratio:.3f}"
+        )
+    (out / "critical.json").write_text(json.dumps(rows, indent=2))
+    return rows
+
+
+def runup_stage(out: Path, seed: int = 0) -> dict:
+    import gymnasium as gym
+
+    from agents.evaluate import run_episode
+    from agents.policies import make_scripted_agents
+
+    env = gym.make("gfb_env/RunUp-v0", render_mode="rgb_array")
+    agent = next(a for name, a in make_scripted_agents(env).items() if name.startswith("map_informed"))
+    res = run_episode(env, agent, seed=seed, record_path=True)
+    frame = env.render()
+    env.close()
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plt.imsave(out / "runup_frame.png", frame)
+    d = {
+        "agent": agent.name,
+        "seed": seed,
+        "return": res.episode_return,
+        "steps": res.steps,
+        "termination_reason": res.termination_reason,
+        "time_to_target_s": res.time_to_target_s,
+        "final_speed_rpm": res.final_speed_rpm,
+        "max_whirl_amplitude": res.max_whirl_amplitude,
+        "path_bearing_number": res.path_bearing_number,
+        "path_foil_damping": res.path_damping,
+    }
+    (out / "runup_episode.json").write_text(json.dumps(d, indent=2))
+    print(
+        f"== RunUp-v0 with {agent.name}: {res.termination_reason} after {res.steps} steps, return "
+        f"{res.episode_return:.1f}, final speed {res.final_speed_rpm:.0f} rpm"
+    )
+    return {k: v for k, v in d.items() if not k.startswith("path")}
 
 
 def cli() -> None:

@@ -7,8 +7,10 @@ Each (task, agent) pair plays the same fixed, seeded episodes (seeds ``10000, 10
 reset with the seed, the policy is deterministic), and the results are reduced to one row
 (:func:`agents.evaluate.summarise`).  Writes ``<out>/benchmark_agents.csv``, ``<out>/benchmark_agents.md``
 (the Markdown table) and ``<out>/benchmark_agents_paths.png`` (each agent's first episode as a path in the
-(Lambda, D_W) plane over the stable / bistable / whirl regions of the nominal bearing's map).
-``--quick`` plays one episode per pair (for tests).
+(Lambda, D_W) plane over the stable / bistable / whirl regions of the nominal bearing's map; the paths are
+also kept in ``benchmark_agents_paths.json``).  ``--quick`` plays one episode per pair (for tests);
+``--merge`` replaces/adds the (task, agent) rows of this run in an existing table; ``--env-kwargs`` passes
+``gymnasium.make`` arguments per task.
 """
 
 from __future__ import annotations
@@ -48,10 +50,10 @@ COLUMNS = [
 ]
 
 
-def agents_for(task: str, learned: list[LearnedPolicy]) -> dict[str, Policy]:
+def agents_for(task: str, learned: list[LearnedPolicy], env_kwargs: dict | None = None) -> dict[str, Policy]:
     """Scripted baselines (built against ``task``'s documented configuration) and the learned policies
     trained on ``task``."""
-    env = gym.make(task)
+    env = gym.make(task, **(env_kwargs or {}))
     out: dict[str, Policy] = dict(make_scripted_agents(env))
     env.close()
     for p in learned:
@@ -61,10 +63,10 @@ def agents_for(task: str, learned: list[LearnedPolicy]) -> dict[str, Policy]:
 
 
 def _run_pair(
-    task: str, name: str, policy: Policy, seeds: list[int]
+    task: str, name: str, policy: Policy, seeds: list[int], env_kwargs: dict | None = None
 ) -> tuple[str, str, list[EpisodeResult], float]:
     t0 = time.perf_counter()
-    res = evaluate(task, policy, seeds, record_path_seeds=(seeds[0],))
+    res = evaluate(task, policy, seeds, env_kwargs=env_kwargs, record_path_seeds=(seeds[0],))
     return task, name, res, time.perf_counter() - t0
 
 
@@ -74,15 +76,19 @@ def run_benchmark(
     agent_filter: set[str] | None = None,
     n_jobs: int = 1,
     policies_dir: str | Path | None = None,
+    env_kwargs: dict[str, dict] | None = None,
 ) -> tuple[list[dict], dict]:
-    """Rows of the table and the recorded first-episode paths ``{(task, agent): EpisodeResult}``."""
+    """Rows of the table and the first-episode paths ``{(task, agent): {"lam", "dw", "success", "reason"}}``.
+
+    ``env_kwargs`` maps a task id to extra ``gymnasium.make`` arguments (used by every agent of the task)."""
     from tqdm import tqdm
 
+    env_kwargs = env_kwargs or {}
     learned = load_learned_policies(policies_dir) if policies_dir else load_learned_policies()
     seeds = [SEED0 + i for i in range(episodes)]
     jobs = []
     for task in tasks:
-        for name, pol in agents_for(task, learned).items():
+        for name, pol in agents_for(task, learned, env_kwargs.get(task)).items():
             if agent_filter and name not in agent_filter:
                 continue
             jobs.append((task, name, pol))
@@ -92,10 +98,10 @@ def run_benchmark(
         from joblib import Parallel, delayed
 
         outs = Parallel(n_jobs=n_jobs, return_as="generator")(
-            delayed(_run_pair)(t, n, p, seeds) for t, n, p in jobs
+            delayed(_run_pair)(t, n, p, seeds, env_kwargs.get(t)) for t, n, p in jobs
         )
     else:
-        outs = (_run_pair(t, n, p, seeds) for t, n, p in jobs)
+        outs = (_run_pair(t, n, p, seeds, env_kwargs.get(t)) for t, n, p in jobs)
     kinds = {(t, n): p.kind for t, n, p in jobs}
     for task, name, res, wall in outs:
         row = {
@@ -106,10 +112,37 @@ def run_benchmark(
             "wall_s": round(wall, 1),
         }
         rows.append(row)
-        paths[(task, name)] = res[0]
+        r0 = res[0]
+        paths[(task, name)] = {
+            "lam": [float(x) for x in r0.path_bearing_number],
+            "dw": [float(x) for x in r0.path_damping],
+            "success": bool(r0.success),
+            "reason": r0.termination_reason,
+        }
         bar.set_postfix_str(f"{task.split('/')[-1]} {name}: {row['mean_return']:.1f}")
         bar.update(1)
     bar.close()
+    return rows, paths
+
+
+def _read_previous(out: Path) -> tuple[list[dict], dict]:
+    """Rows and paths of an earlier run in ``out`` (for ``--merge``)."""
+    rows, paths = [], {}
+    p = out / "benchmark_agents.csv"
+    if p.exists():
+        for r in csv.DictReader(p.open()):
+            row = dict(r)
+            for k in COLUMNS[3:]:
+                v = row.get(k, "")
+                row[k] = math.nan if v in ("", None) else float(v)
+            for k in ("episodes", "touchdowns"):
+                row[k] = int(row[k])
+            rows.append(row)
+    pj = out / "benchmark_agents_paths.json"
+    if pj.exists():
+        for key, v in json.loads(pj.read_text()).items():
+            task, agent = key.split("|", 1)
+            paths[(task, agent)] = v
     return rows, paths
 
 
@@ -205,9 +238,9 @@ def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> N
         if np.isfinite(lf).any():
             ax.plot(lf, d, "k--", lw=1)
         for (t, a), r in paths.items():
-            if t != task or not r.path_bearing_number:
+            if t != task or not r["lam"]:
                 continue
-            lam, dw = np.asarray(r.path_bearing_number), np.asarray(r.path_damping)
+            lam, dw = np.asarray(r["lam"]), np.asarray(r["dw"])
             ax.plot(
                 lam,
                 dw,
@@ -215,10 +248,10 @@ def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> N
                 color=colors[a],
                 lw=1.3,
                 alpha=0.9,
-                label=f"{a} ({r.termination_reason or 'time'})",
+                label=f"{a} ({r['reason'] or 'time'})",
             )
             ax.plot(lam[0], dw[0], "o", color=colors[a], ms=3)
-            ax.plot(lam[-1], dw[-1], "s" if r.success else "x", color=colors[a], ms=5)
+            ax.plot(lam[-1], dw[-1], "s" if r["success"] else "x", color=colors[a], ms=5)
         ax.set_yscale("log")
         ax.set_xlim(x0, x1)
         ax.set_ylim(d.min(), d.max())
@@ -254,7 +287,25 @@ def main(argv: list[str] | None = None) -> int:
         "--policies", default=None, help="directory of committed policies (default agents/policies)"
     )
     ap.add_argument("--n-jobs", type=int, default=1, help="parallel (task, agent) pairs, at most 2")
+    ap.add_argument(
+        "--env-kwargs",
+        default=None,
+        help='JSON {task id: {gymnasium.make kwargs}}, e.g. {"gfb_env/RunUp-v0": {}}',
+    )
+    ap.add_argument(
+        "--merge",
+        action="store_true",
+        help="merge into the existing table in --out (replace same task/agent)",
+    )
     a = ap.parse_args(argv)
+    env_kwargs: dict[str, dict] = {}
+    if a.env_kwargs:
+        try:
+            env_kwargs = json.loads(a.env_kwargs)
+        except json.JSONDecodeError as exc:
+            ap.error(f"--env-kwargs is not valid JSON: {exc}")
+        if not isinstance(env_kwargs, dict) or not all(isinstance(v, dict) for v in env_kwargs.values()):
+            ap.error("--env-kwargs must be a JSON object mapping task ids to objects")
     episodes = 1 if a.quick else a.episodes
     if episodes < 1:
         ap.error(f"--episodes must be >= 1, got {a.episodes}")
@@ -268,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
     usable = []
     for t in tasks:
         try:
-            gym.make(t).close()
+            gym.make(t, **env_kwargs.get(t, {})).close()
             usable.append(t)
         except Exception as exc:  # noqa: BLE001 - a task that cannot be built is reported, not fatal
             skipped[t] = f"{type(exc).__name__}: {exc}"
@@ -277,21 +328,35 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("no task can be built")
     t0 = time.perf_counter()
     rows, paths = run_benchmark(
-        usable, episodes, set(a.agents.split(",")) if a.agents else None, a.n_jobs, a.policies
+        usable, episodes, set(a.agents.split(",")) if a.agents else None, a.n_jobs, a.policies, env_kwargs
     )
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    if a.merge:
+        old_rows, old_paths = _read_previous(out)
+        new = {(r["task"], r["agent"]) for r in rows}
+        rows = [r for r in old_rows if (r["task"], r["agent"]) not in new] + rows
+        paths = {**{k: v for k, v in old_paths.items() if k not in new}, **paths}
+        if any(int(r["episodes"]) != episodes for r in rows):
+            print("warning: merged rows have different episode counts")
+    order = {t: i for i, t in enumerate(TASKS)}
+    rows.sort(key=lambda r: order.get(r["task"], 99))
+    all_tasks = sorted({r["task"] for r in rows}, key=lambda t: order.get(t, 99))
     write_csv(rows, out / "benchmark_agents.csv")
     (out / "benchmark_agents.md").write_text(markdown_table(rows, episodes, skipped))
-    env = gym.make(usable[0])
-    plot_paths(paths, NominalMap.from_env(env), out / "benchmark_agents_paths.png", usable)
+    (out / "benchmark_agents_paths.json").write_text(
+        json.dumps({f"{t}|{n}": v for (t, n), v in paths.items()})
+    )
+    env = gym.make(usable[0], **env_kwargs.get(usable[0], {}))
+    plot_paths(paths, NominalMap.from_env(env), out / "benchmark_agents_paths.png", all_tasks)
     env.close()
     meta = {
         "episodes": episodes,
         "seeds": [SEED0, SEED0 + episodes - 1],
-        "tasks": usable,
+        "tasks": all_tasks,
+        "env_kwargs": env_kwargs,
         "skipped": skipped,
-        "wall_time_s": round(time.perf_counter() - t0, 1),
+        "wall_time_s_last_run": round(time.perf_counter() - t0, 1),
     }
     (out / "benchmark_agents.json").write_text(json.dumps(meta, indent=2))
     print((out / "benchmark_agents.md").read_text())

@@ -218,6 +218,13 @@ def test_benchmark_quick_writes_table(tmp_path):
     assert all(r["episodes"] == "1" for r in rows)
     assert "| task | agent |" in (tmp_path / "benchmark_agents.md").read_text()
     assert (tmp_path / "benchmark_agents_paths.png").stat().st_size > 10_000
+    # --merge replaces the rows of the agents it re-runs and keeps the others
+    n = len(rows)
+    args = ["--quick", "--out", str(tmp_path), "--policies", str(tmp_path / "none"), "--merge"]
+    assert main(args + ["--tasks", "gfb_env/RunUp-v0", "--agents", "map_informed"]) == 0
+    rows2 = list(csv.DictReader((tmp_path / "benchmark_agents.csv").open()))
+    assert len(rows2) == n
+    assert sum(r["agent"] == "map_informed" and r["task"] == "gfb_env/RunUp-v0" for r in rows2) == 1
 
 
 def test_benchmark_cli_rejects_bad_arguments(tmp_path):

@@ -237,7 +237,16 @@ def train(
 
     torch.set_num_threads(torch_threads)
     set_random_seed(seed)
-    venv = make_vec_env_for(env_id, n_envs, seed, out / "monitor", env_kwargs)
+    monitor_dir = out / "monitor"
+    if resume is not None:
+        # keep the earlier runs' logs for the learning curve: new Monitor files in a subfolder, the
+        # earlier evaluations under another name (EvalCallback rewrites evaluations.npz)
+        monitor_dir = out / "monitor" / f"resumed_{int(time.time())}"
+        monitor_dir.mkdir(parents=True, exist_ok=True)
+        ev = out / "eval" / "evaluations.npz"
+        if ev.exists():
+            ev.rename(out / "eval" / f"evaluations_before_{int(time.time())}.npz")
+    venv = make_vec_env_for(env_id, n_envs, seed, monitor_dir, env_kwargs)
     eval_base = make_vec_env_for(env_id, 1, seed + 10_000, None, env_kwargs)
     norm = zoo["normalize"]
     cls = _algo_class(algo)
@@ -371,11 +380,15 @@ def plot_learning_curve(run_dir: str | Path, path: str | Path, title: str = "") 
     run_dir = Path(run_dir)
     fig, ax = plt.subplots(figsize=(7, 4))
     eps = []
-    for f in sorted((run_dir / "monitor").glob("*.monitor.csv")):
-        lines = f.read_text().splitlines()[2:]
-        for line in lines:
+    for f in sorted((run_dir / "monitor").rglob("*.monitor.csv")):
+        lines = f.read_text().splitlines()
+        try:
+            t_start = float(json.loads(lines[0].lstrip("#"))["t_start"])
+        except (IndexError, ValueError, KeyError):
+            t_start = 0.0
+        for line in lines[2:]:
             r, l, t = line.split(",")[:3]
-            eps.append((float(t), float(r), int(l)))
+            eps.append((t_start + float(t), float(r), int(l)))
     if eps:
         eps.sort()
         ret = np.array([e[1] for e in eps])
@@ -384,9 +397,22 @@ def plot_learning_curve(run_dir: str | Path, path: str | Path, title: str = "") 
         w = max(1, min(50, len(ret) // 10))
         roll = np.convolve(ret, np.ones(w) / w, mode="valid")
         ax.plot(steps[w - 1 :], roll, "-", color="C0", label=f"rolling mean ({w})")
-    p = run_dir / "eval" / "evaluations.npz"
-    if p.exists():
-        d = np.load(p)
+    files = sorted((run_dir / "eval").glob("evaluations_before_*.npz")) + [
+        run_dir / "eval" / "evaluations.npz"
+    ]
+    ts, res = [], []
+    for p in files:
+        if p.exists():
+            d = np.load(p)
+            if len(d["results"]):
+                ts.append(d["timesteps"])
+                res.append(d["results"])
+    if ts:
+        widths = {r.shape[1] for r in res}
+        if len(widths) == 1:
+            d = {"timesteps": np.concatenate(ts), "results": np.concatenate(res)}
+        else:
+            d = {"timesteps": ts[-1], "results": res[-1]}
         if len(d["results"]):
             m, s = d["results"].mean(axis=1), d["results"].std(axis=1)
             ax.errorbar(

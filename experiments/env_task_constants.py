@@ -28,10 +28,10 @@ import time
 
 import numpy as np
 
+from gfb_env.analysis.maps import optimum_from_curve
 from gfb_env.envs._data import NOMINAL_BEARING, TASK_CONSTANTS_PATH
 from gfb_env.envs._stability import (
     WHIRL_FACTOR,
-    best_from_curve,
     critical_bearing_numbers_on_grid,
     developed_whirl_state,
     task_constants,
@@ -97,7 +97,7 @@ def main() -> None:
                 foil_stiffness=fk * bp.foil_stiffness,
             )
             lc = critical_bearing_numbers_on_grid(model, DAMPINGS, lam_min=0.2)
-            d_opt, best = best_from_curve(DAMPINGS, lc)
+            d_opt, best = optimum_from_curve(DAMPINGS, lc)
             rows.append(
                 [c, fk, fl, best, d_opt, lc[0], lc[-1], bp.speed_rpm_at(best), bp.speed_rpm_at(lc[0])]
             )

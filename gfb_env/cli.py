@@ -17,8 +17,15 @@ from pathlib import Path
 
 import numpy as np
 
+from gfb_env._cli_common import (
+    add_model_options,
+    add_speed_options,
+    bearing_number_from_args,
+    model_from_args,
+    positive,
+)
 from gfb_env.integrator import TrapezoidalIntegrator, find_equilibrium
-from gfb_env.model import GFBModel, Grid, Structure
+from gfb_env.model import GFBModel
 from gfb_env.params import BearingParameters
 
 __all__ = ["main", "build_parser"]
@@ -27,81 +34,6 @@ __all__ = ["main", "build_parser"]
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # one line, exit code 2
         self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def _positive(name: str):
-    def conv(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
-        if not (math.isfinite(v) and v > 0):
-            raise argparse.ArgumentTypeError(f"{name} must be finite and positive, got {text!r}")
-        return v
-
-    return conv
-
-
-def _grid(text: str) -> Grid:
-    try:
-        return Grid.parse(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
-def add_model_options(p: argparse.ArgumentParser, damping: bool = True) -> None:
-    """Options shared by every command that builds a model."""
-    p.add_argument(
-        "--structure",
-        choices=[s.value for s in Structure],
-        default="viscoelastic",
-        help="foil model: rigid (Q = 0), elastic (K_W Q = -(Pbar - 1), Eq. 6-8) or viscoelastic "
-        "(D_W Q' + K_W Q = -(Pbar - 1), Eq. 9-10). Default: %(default)s",
-    )
-    p.add_argument(
-        "--foil-stiffness",
-        type=_positive("--foil-stiffness"),
-        default=None,
-        metavar="K",
-        help="nondimensional foil stiffness K_W (default: Walowit-Anno value of Table 1, 2.337)",
-    )
-    if damping:
-        p.add_argument(
-            "--foil-damping",
-            type=_positive("--foil-damping"),
-            default=1.0,
-            metavar="D",
-            help="nondimensional foil damping D_W (viscoelastic only). Default: %(default)s",
-        )
-    p.add_argument(
-        "--grid",
-        type=_grid,
-        default=Grid(),
-        metavar="NPHIxNZ",
-        help="finite-difference grid N_phi x N_Z as counted in the paper (N_phi includes the periodic "
-        "duplicate, N_Z the ambient edges; N_Z odd). Default: 79x7",
-    )
-
-
-def add_speed_options(p: argparse.ArgumentParser, required: bool = True) -> None:
-    g = p.add_mutually_exclusive_group(required=required)
-    g.add_argument(
-        "--bearing-number",
-        type=_positive("--bearing-number"),
-        metavar="LAMBDA",
-        help="bearing number Lambda = 6 mu0 omega0 / p0 (R/C)^2 (0.5995 is 36 000 rpm)",
-    )
-    g.add_argument("--speed-rpm", type=_positive("--speed-rpm"), metavar="N", help="rotor speed in rpm")
-
-
-def model_from_args(args: argparse.Namespace) -> GFBModel:
-    return GFBModel(args.structure, grid=args.grid, foil_stiffness=args.foil_stiffness)
-
-
-def bearing_number_from_args(args: argparse.Namespace, bearing: BearingParameters) -> float:
-    if getattr(args, "bearing_number", None) is not None:
-        return float(args.bearing_number)
-    return bearing.bearing_number_at(float(args.speed_rpm))
 
 
 def _print_table(rows: dict) -> None:
@@ -263,7 +195,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--speed-rpm",
-        type=_positive("--speed-rpm"),
+        type=positive("--speed-rpm"),
         default=None,
         metavar="N",
         help="rotor speed for the bearing number (default: 36 000 rpm of Table 1)",
@@ -292,7 +224,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_speed_options(p)
     p.add_argument(
         "--duration",
-        type=_positive("--duration"),
+        type=positive("--duration"),
         required=True,
         metavar="TAU",
         help="simulated nondimensional time (tau = t / T, T = 1.59e-4 s for Table 1)",
@@ -314,7 +246,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--record-interval",
-        type=_positive("--record-interval"),
+        type=positive("--record-interval"),
         default=0.25,
         metavar="DTAU",
         help="sampling interval of the output (tau). Default: %(default)s",

@@ -16,51 +16,16 @@ from pathlib import Path
 
 import numpy as np
 
+from gfb_env._cli_common import add_model_options, model_from_args
+
 __all__ = ["add_analysis_commands", "cmd_critical", "cmd_hysteresis", "cmd_map"]
 
 _FMT = argparse.RawDescriptionHelpFormatter
 
 
-def _add_common(p: argparse.ArgumentParser, damping: bool = True) -> None:
-    p.add_argument(
-        "--structure",
-        choices=["rigid", "elastic", "viscoelastic"],
-        default="viscoelastic",
-        help="foil structure model (paper Sect. 2.3): rigid Q=0, elastic K_W Q=-(Pbar-1), viscoelastic "
-        "D_W Q' + K_W Q = -(Pbar-1) (default: viscoelastic)",
-    )
-    p.add_argument(
-        "--foil-stiffness",
-        type=float,
-        default=None,
-        metavar="K",
-        help="nondimensional foil stiffness K_W (default: Walowit-Anno value of Table 1, 2.337)",
-    )
-    if damping:
-        p.add_argument(
-            "--foil-damping",
-            type=float,
-            default=1.0,
-            metavar="D",
-            help="nondimensional foil damping D_W (viscoelastic only; default 1.0)",
-        )
-    p.add_argument(
-        "--grid", default="79x7", help="finite-difference grid N_phi x N_Z (default: the paper's 79x7)"
-    )
+def _add_common(p: argparse.ArgumentParser) -> None:
+    add_model_options(p)
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
-
-
-def _model(args):
-    from gfb_env.model import GFBModel, Grid
-
-    if args.foil_stiffness is not None and not (
-        math.isfinite(args.foil_stiffness) and args.foil_stiffness > 0
-    ):
-        raise ValueError(f"--foil-stiffness must be a finite positive number, got {args.foil_stiffness!r}")
-    fd = getattr(args, "foil_damping", 1.0)
-    if not (math.isfinite(fd) and fd > 0):
-        raise ValueError(f"--foil-damping must be a finite positive number, got {fd!r}")
-    return GFBModel(args.structure, Grid.parse(args.grid), foil_stiffness=args.foil_stiffness)
 
 
 def _critical(args, model):
@@ -75,7 +40,7 @@ def _critical(args, model):
 
 def cmd_critical(args: argparse.Namespace) -> int:
     """Handler of ``gfb critical``."""
-    model = _model(args)
+    model = model_from_args(args)
     t0 = time.perf_counter()
     cp = _critical(args, model)
     d = cp.as_dict()
@@ -97,7 +62,7 @@ def cmd_hysteresis(args: argparse.Namespace) -> int:
     """Handler of ``gfb hysteresis``."""
     from gfb_env.analysis.periodic import ShootingError, coast_down_fold, fold_bearing_number
 
-    model = _model(args)
+    model = model_from_args(args)
     if args.n_steps < 20:
         raise ValueError(f"--n-steps must be >= 20, got {args.n_steps}")
     t0 = time.perf_counter()

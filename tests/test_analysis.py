@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 
@@ -258,12 +257,10 @@ def test_optimal_foil_damping_from_committed_map():
 
 # ---------------------------------------------------------------------------------------------- CLI
 def _cli(argv):
-    from gfb_env.cli_analysis import add_analysis_commands
+    """The real ``gfb`` parser; handler exceptions propagate (``main`` maps ValueError to exit 2)."""
+    from gfb_env.cli import build_parser
 
-    ap = argparse.ArgumentParser(prog="gfb")
-    sub = ap.add_subparsers(dest="cmd", required=True)
-    add_analysis_commands(sub)
-    args = ap.parse_args(argv)
+    args = build_parser().parse_args(argv)
     return args.func(args)
 
 
@@ -280,15 +277,21 @@ def test_cli_critical_json(capsys):
     assert 0.45 < d["critical_bearing_number"] < 0.6
 
 
-def test_cli_bad_input_raises_value_error():
-    with pytest.raises(ValueError, match="grid"):
-        _cli(["critical", "--grid", "79by7"])
-    with pytest.raises(ValueError, match="foil-damping"):
-        _cli(["critical", "--foil-damping", "-2"])
+def test_cli_bad_input_is_rejected(capsys):
+    from gfb_env.cli import main
+
+    for argv, fragment in (
+        (["critical", "--grid", "79by7"], "grid"),
+        (["critical", "--foil-damping", "-2"], "--foil-damping"),
+    ):
+        with pytest.raises(SystemExit) as exc:
+            main(argv)
+        assert exc.value.code == 2 and fragment in capsys.readouterr().err
     with pytest.raises(ValueError, match="foil-stiffness"):
         _cli(["map", "--foil-stiffness", "a,b", "--out", "/tmp/x"])
     with pytest.raises(ValueError):  # no stable equilibrium in the range
         _cli(["critical", "--structure", "rigid", "--grid", "41x7", "--bearing-range", "0.6", "0.9"])
+    assert main(["critical", "--structure", "rigid", "--grid", "41x7", "--bearing-range", "0.6", "0.9"]) == 2
 
 
 @pytest.mark.parametrize("cmd", ["critical", "hysteresis", "map"])

@@ -103,7 +103,11 @@ class StabilityMap:
     records: list
 
 
-def _optimum(dws: np.ndarray, lc: np.ndarray) -> tuple[float, float]:
+def optimum_from_curve(dws: np.ndarray, lc: np.ndarray) -> tuple[float, float]:
+    """Optimum damping ``D_W*`` and ``max Lambda_c`` of a sampled curve ``Lambda_c(D_W)``: the vertex of
+    the parabola in ``log D_W`` through the best sample and its neighbours (the best sample itself at
+    the ends of the range or where the parabola opens upwards; NaN if no sample is finite)."""
+    dws, lc = np.asarray(dws, dtype=float), np.asarray(lc, dtype=float)
     ok = np.isfinite(lc)
     if not ok.any():
         return math.nan, math.nan
@@ -161,7 +165,7 @@ def compute_stability_map(
     rigid = lc(recs[0])
     elastic = np.array([lc(r) for r in recs[1 : 1 + len(kws)]])
     visco = np.array([lc(r) for r in recs[1 + len(kws) :]]).reshape(len(kws), len(dws))
-    opt = np.array([_optimum(dws, visco[i]) for i in range(len(kws))]).reshape(len(kws), 2)
+    opt = np.array([optimum_from_curve(dws, visco[i]) for i in range(len(kws))]).reshape(len(kws), 2)
     return StabilityMap(kws, dws, visco, elastic, rigid, opt[:, 0], opt[:, 1], grid, recs)
 
 
@@ -289,7 +293,9 @@ def optimal_foil_damping(foil_stiffness: float, path: str | os.PathLike | None =
     for kw in kws:
         s = sel & (m["foil_stiffness"] == kw)
         order = np.argsort(m["foil_damping"][s])
-        dopt.append(_optimum(m["foil_damping"][s][order], m["critical_bearing_number"][s][order])[0])
+        dopt.append(
+            optimum_from_curve(m["foil_damping"][s][order], m["critical_bearing_number"][s][order])[0]
+        )
     dopt = np.array(dopt)
     ok = np.isfinite(dopt)
     if not ok.any():

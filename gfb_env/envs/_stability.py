@@ -16,6 +16,7 @@ import numpy as np
 
 from gfb_env.analysis import NoCriticalPointError, NoStableEquilibriumError, jacobian_eigenvalues
 from gfb_env.analysis import critical_bearing_number as _analysis_critical_bearing_number
+from gfb_env.analysis.maps import optimum_from_curve
 from gfb_env.integrator import find_equilibrium
 from gfb_env.model import GFBModel
 
@@ -85,20 +86,6 @@ def critical_bearing_numbers_on_grid(
     return out
 
 
-def best_from_curve(dampings: np.ndarray, lambda_c: np.ndarray) -> tuple[float, float]:
-    """Optimum damping and ``max Lambda_c``: parabola in ``log D_W`` through the best point and its
-    neighbours (the best grid point at the ends of the range)."""
-    d, lc = np.asarray(dampings, float), np.asarray(lambda_c, float)
-    j = int(np.nanargmax(lc))
-    if 0 < j < len(d) - 1 and np.all(np.isfinite(lc[j - 1 : j + 2])):
-        x = np.log(d[j - 1 : j + 2])
-        c = np.polyfit(x, lc[j - 1 : j + 2], 2)
-        if c[0] < 0:
-            xv = -c[1] / (2 * c[0])
-            return float(np.exp(xv)), float(np.polyval(c, xv))
-    return float(d[j]), float(lc[j])
-
-
 def developed_whirl_state(
     model: GFBModel,
     bearing_number: float,
@@ -148,7 +135,7 @@ def task_constants(model: GFBModel, d_min: float = 0.1, d_max: float = 10.0) -> 
     ``lambda_best``, and a developed whirl state at ``WHIRL_FACTOR * lambda_best``."""
     ds = np.geomspace(d_min, d_max, 25)
     lc = critical_bearing_numbers_on_grid(model, ds, lam_min=0.3, lam_step=0.01)
-    d_opt, best = best_from_curve(ds, lc)
+    d_opt, best = optimum_from_curve(ds, lc)
     entry = {
         "lambda_best": best,
         "d_opt": d_opt,

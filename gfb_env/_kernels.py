@@ -22,7 +22,9 @@ The Jacobian is stored as blocks over "column unknowns" x_i = [P_i0 .. P_i,nr-1,
 ``Ad[i] = dk_i/dx_i``, ``Ap[i] = dk_i/dx_{i+1}``, ``Am[i] = dk_i/dx_{i-1}``, ``Er[i] = dk_i/d rotor``,
 ``Rr[i] = dk_rotor/dx_i`` and ``Srr = dk_rotor/d rotor`` (a periodic block-tridiagonal matrix with a
 border of four rotor unknowns).  :func:`factor_system` factors ``I - hh J`` by block-Thomas elimination
-of columns 1..nc-1 with column 0 and the rotor as a border (a Schur complement of size m + 4).
+of columns 1..nc-1 with column 0 and the rotor as a border (a Schur complement of size m + 4).  It keeps
+the explicit inverses of the m x m pivot blocks: a factorisation costs ~25 % more, a solve (several per
+step, against one factorisation per several steps) 2-4x less.
 """
 
 from __future__ import annotations
@@ -369,12 +371,32 @@ def _lu_solve_mat(LU, piv, X):
 
 
 @njit(cache=True, fastmath=True)
+def _left_multiply(A, X, tmp):
+    """X <- A @ X for a small square A (tmp: workspace shaped like X)."""
+    n = A.shape[0]
+    ncol = X.shape[1]
+    for r in range(n):
+        for q in range(ncol):
+            tmp[r, q] = 0.0
+        for c in range(n):
+            a = A[r, c]
+            for q in range(ncol):
+                tmp[r, q] += a * X[c, q]
+    for r in range(n):
+        for q in range(ncol):
+            X[r, q] = tmp[r, q]
+
+
+@njit(cache=True, fastmath=True)
 def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv):
     """Factor ``I - hh J`` (J in blocks).  Returns False if a pivot vanishes."""
     nc = Ad.shape[0]
     m = Ad.shape[1]
     nb = m + 4
     last = nc - 1
+    inv = np.empty((m, m))
+    tmp_mm = np.empty((m, m))
+    tmp_mb = np.empty((m, nb))
     # block-Thomas forward sweep over columns 1..nc-1
     for i in range(1, nc):
         for r in range(m):
@@ -391,11 +413,19 @@ def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv):
                             Dlu[i, r, q] += a * Uhat[i - 1, t, q]
         if not _lu(Dlu[i], Dpiv[i]):
             return False
+        # keep the explicit inverse of D_i: the solves then run on matrix-vector products
+        for r in range(m):
+            for q in range(m):
+                inv[r, q] = 1.0 if r == q else 0.0
+        _lu_solve_mat(Dlu[i], Dpiv[i], inv)
+        for r in range(m):
+            for q in range(m):
+                Dlu[i, r, q] = inv[r, q]
         if i < last:
             for r in range(m):
                 for q in range(m):
                     Uhat[i, r, q] = -hh * Ap[i, r, q]
-            _lu_solve_mat(Dlu[i], Dpiv[i], Uhat[i])
+            _left_multiply(Dlu[i], Uhat[i], tmp_mm)
     # Y = T^{-1} W
     for i in range(1, nc):
         for r in range(m):
@@ -418,7 +448,7 @@ def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv):
                     if a != 0.0:
                         for q in range(nb):
                             Y[i, r, q] += a * Y[i - 1, t, q]
-        _lu_solve_mat(Dlu[i], Dpiv[i], Y[i])
+        _left_multiply(Dlu[i], Y[i], tmp_mb)
     for i in range(last - 1, 0, -1):
         for r in range(m):
             for t in range(m):
@@ -481,7 +511,7 @@ def solve_system(hh, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, rhs_vec, x, 
         border[r] = zb[0, r]
     for r in range(4):
         border[m + r] = rhs_vec[r0 + r]
-    # forward: z_i = D_i^{-1} (r_i - L_i z_{i-1}),  L_i = -hh Am[i]
+    # forward: z_i = D_i^{-1} (r_i - L_i z_{i-1}),  L_i = -hh Am[i],  Dlu[i] holds D_i^{-1}
     col = np.empty(m)
     for i in range(1, nc):
         for r in range(m):
@@ -490,9 +520,11 @@ def solve_system(hh, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, rhs_vec, x, 
                 for t in range(m):
                     acc += hh * Am[i, r, t] * zb[i - 1, t]
             col[r] = acc
-        _lu_solve(Dlu[i], Dpiv[i], col)
         for r in range(m):
-            zb[i, r] = col[r]
+            acc = 0.0
+            for t in range(m):
+                acc += Dlu[i, r, t] * col[t]
+            zb[i, r] = acc
     for i in range(last - 1, 0, -1):
         for r in range(m):
             acc = 0.0
@@ -505,7 +537,7 @@ def solve_system(hh, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, rhs_vec, x, 
         for t in range(m):
             acc += Ap[0, r, t] * zb[1, t] + Am[0, r, t] * zb[last, t]
         border[r] += hh * acc
-    for r in range(4):
+    for r in range(2, 4):  # rows 0, 1 of Rr are zero: xi' = xi_dot, eta' = eta_dot
         acc = 0.0
         for i in range(1, nc):
             for t in range(m):

@@ -68,24 +68,30 @@ class LearnedPolicy(Policy):
         self.algo = algo
         self.env_id: str | None = meta.get("env_id")
         self.model = {"ppo": PPO, "sac": SAC}[algo].load(str(zip_path), device="cpu")
-        self.obs_rms = None
+        # the frozen observation statistics only (the unpickled VecNormalize has no venv and cannot be
+        # pickled again, e.g. to a joblib worker)
+        self.obs_mean = self.obs_var = None
+        self.epsilon, self.clip_obs = 1e-8, 10.0
         vn = d / "vecnormalize.pkl"
         if vn.exists():
             with open(vn, "rb") as fh:
-                self.vecnorm = pickle.load(fh)
-            if not self.vecnorm.norm_obs:
-                self.vecnorm = None
-        else:
-            self.vecnorm = None
+                v = pickle.load(fh)
+            if v.norm_obs:
+                self.obs_mean, self.obs_var = np.asarray(v.obs_rms.mean), np.asarray(v.obs_rms.var)
+                self.epsilon, self.clip_obs = float(v.epsilon), float(v.clip_obs)
+        self._args = (str(path), algo, name)
         self.name = name or (d.name if p.is_dir() else zip_path.stem)
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         """The observation as the model saw it in training (VecNormalize statistics, frozen)."""
-        if self.vecnorm is None:
+        if self.obs_mean is None:
             return np.asarray(obs, dtype=np.float32)
-        rms, eps, clip = self.vecnorm.obs_rms, self.vecnorm.epsilon, self.vecnorm.clip_obs
-        x = (np.asarray(obs, dtype=np.float64) - rms.mean) / np.sqrt(rms.var + eps)
-        return np.clip(x, -clip, clip).astype(np.float32)
+        x = (np.asarray(obs, dtype=np.float64) - self.obs_mean) / np.sqrt(self.obs_var + self.epsilon)
+        return np.clip(x, -self.clip_obs, self.clip_obs).astype(np.float32)
+
+    def __reduce__(self):
+        # pickled by path (a joblib worker reloads the files)
+        return (LearnedPolicy, self._args)
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         return self.model.predict(

@@ -221,7 +221,9 @@ def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> N
     colors = {a: plt.cm.tab10(i % 10) for i, a in enumerate(names)}
     styles = {a: ("-", "--", ":", "-.")[i % 4] for i, a in enumerate(names)}
     for ax, task in zip(axes[0], tasks):
-        x0, x1 = 0.40, 0.80
+        lams = [x for (t, _), r in paths.items() if t == task for x in r["lam"]]
+        x0 = min([0.40, *lams]) - 0.01
+        x1 = max([0.80, *lams]) + 0.01
         ax.fill_betweenx(
             d, x0, np.where(np.isfinite(lf), lf, lc), color="#cfe8cf", label="stable (equilibrium only)"
         )

@@ -236,3 +236,16 @@ def test_benchmark_cli_rejects_bad_arguments(tmp_path):
         main(["--tasks", "gfb_env/Nope-v0", "--out", str(tmp_path)])
     with pytest.raises(SystemExit):
         main(["--n-jobs", "8", "--out", str(tmp_path)])
+
+
+def test_committed_policies_load_and_act():
+    from agents.evaluate import load_learned_policies
+
+    pols = load_learned_policies()
+    assert {p.env_id for p in pols} >= {"gfb_env/RunUpRandomized-v0", "gfb_env/WhirlRecovery-v0"}
+    for pol in pols:
+        env = gym.make(pol.env_id, max_episode_steps=5)
+        assert pol.model.observation_space.shape == env.observation_space.shape, pol.name
+        res = run_episode(env, pol, seed=0)
+        assert res.steps >= 1 and math.isfinite(res.episode_return)
+        env.close()

@@ -1,4 +1,4 @@
-"""Agents for the gfb_env tasks: scripted baselines (:mod:`agents.policies`), SB3 training
+"""Agents for the gfb_env tasks: scripted baselines (:mod:`agents.scripted`), SB3 training
 (:mod:`agents.train`), evaluation of scripted and learned policies alike (:mod:`agents.evaluate`).
 
 See ``docs/agents.md``."""

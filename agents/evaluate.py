@@ -1,7 +1,7 @@
 """Evaluate scripted and learned policies alike on gfb_env tasks.
 
 * :class:`LearnedPolicy` wraps a committed SB3 model (``model.zip``) and its VecNormalize statistics
-  (``vecnormalize.pkl``) behind the :class:`~agents.policies.Policy` interface: ``predict`` normalises the
+  (``vecnormalize.pkl``) behind the :class:`~agents.scripted.Policy` interface: ``predict`` normalises the
   raw observation with the saved statistics and calls the model.
 * :func:`run_episode` plays one seeded episode and returns an :class:`EpisodeResult` (return, success,
   time to target, final speed, max whirl amplitude, touchdown, the (Lambda, D_W) path).
@@ -21,7 +21,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from agents.policies import Policy
+from agents.scripted import Policy
 
 __all__ = [
     "LearnedPolicy",

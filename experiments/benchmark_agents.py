@@ -28,7 +28,7 @@ import numpy as np
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from agents.evaluate import EpisodeResult, LearnedPolicy, evaluate, load_learned_policies, summarise
 from agents.nominal_map import NominalMap
-from agents.policies import Policy, make_scripted_agents
+from agents.scripted import Policy, make_scripted_agents
 
 TASKS = ("gfb_env/RunUp-v0", "gfb_env/RunUpRandomized-v0", "gfb_env/WhirlRecovery-v0")
 SEED0 = 10_000

@@ -13,7 +13,7 @@ import pytest
 import gfb_env.envs  # noqa: F401
 from agents.evaluate import LearnedPolicy, run_episode, summarise
 from agents.nominal_map import NominalMap
-from agents.policies import ControlSpec, MapInformedAgent, make_scripted_agents
+from agents.scripted import ControlSpec, MapInformedAgent, make_scripted_agents
 from agents.train import load_hyperparams, train
 from agents.train import main as train_main
 

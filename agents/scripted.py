@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from agents.nominal_map import NominalMap
+from gfb_env.envs.base import OBS_ETA_EXTENT, OBS_SPEED, OBS_XI_EXTENT
 
 __all__ = [
     "Policy",
@@ -49,14 +50,10 @@ __all__ = [
     "WhirlGuardAgent",
     "DampingSearchAgent",
     "make_scripted_agents",
-    "OBS_EXTENT",
-    "OBS_SPEED",
-    "OBS_DAMPING",
 ]
 
-OBS_EXTENT = (4, 5)
-OBS_SPEED = 6
-OBS_DAMPING = 7
+# the observation layout is the environment's (one owner)
+OBS_EXTENT = (OBS_XI_EXTENT, OBS_ETA_EXTENT)
 
 
 class Policy:

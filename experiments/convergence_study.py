@@ -35,24 +35,27 @@ def benchmark_case(grid: str = "79x7"):
 def amplitude(m: GFBModel, s0: np.ndarray, tol: float, tau_end: float, window: float) -> dict:
     it = TrapezoidalIntegrator(m, s0, 0.6, 1.0, rtol=tol, atol=tol)
     t0 = time.perf_counter()
-    res = it.advance(tau_end, record_interval=0.05)
+    res = it.advance(tau_end, record_interval=0.05, raise_on_failure=False)
     wall = time.perf_counter() - t0
     tr = res.trajectory
     sel = tr.tau >= tau_end - window
+    if res.status != "done" or not sel.any():  # a loose tolerance may end in a (spurious) touchdown
+        print(f"rtol={tol:g}: {res.status} at tau={res.tau:.1f} {res.message}")
     return {
         "rtol": tol,
-        "amplitude": float(tr.eccentricity[sel].max()),
-        "min_film_thickness": float(tr.min_film_thickness[sel].min()),
+        "status": res.status,
+        "amplitude": float(tr.eccentricity[sel].max()) if sel.any() else float("nan"),
+        "min_film_thickness": float(tr.min_film_thickness[sel].min()) if sel.any() else float("nan"),
         "steps": res.steps,
         "wall_s": wall,
     }
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="coarse grid and a short run (for tests)")
     p.add_argument("--out", default="results/convergence_study")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     grid, tau_end, window = ("31x5", 800.0, 200.0) if a.quick else ("79x7", 3000.0, 500.0)
     tols = [1e-2, 1e-3] if a.quick else [3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5]
     m, s0 = benchmark_case(grid)
@@ -70,7 +73,7 @@ def main() -> None:
     with open(out / "convergence.csv", "w") as fh:
         fh.write(",".join(keys) + "\n")
         for r in rows:
-            fh.write(",".join(f"{r[k]:.8g}" for k in keys) + "\n")
+            fh.write(",".join(r[k] if isinstance(r[k], str) else f"{r[k]:.8g}" for k in keys) + "\n")
     import matplotlib
 
     matplotlib.use("Agg")
@@ -90,7 +93,8 @@ def main() -> None:
     fig.savefig(out / "convergence.png", dpi=110)
     for r in rows:
         print(json.dumps(r))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

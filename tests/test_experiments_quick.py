@@ -50,3 +50,11 @@ def test_hysteresis_quick(tmp_path):
         rows[0]
     )
     assert float(rows[0]["fold_bearing_number"]) < float(rows[0]["critical_bearing_number"])
+
+
+def test_convergence_study_quick(tmp_path):
+    _run("convergence_study", tmp_path)
+    rows = list(csv.DictReader((tmp_path / "convergence.csv").open()))
+    assert [r["status"] for r in rows] == ["done", "done"]
+    assert float(rows[0]["relative_amplitude_error"]) < 2e-3  # rtol 1e-2 vs 1e-3 on the rigid 31x5 cycle
+    assert (tmp_path / "convergence.png").stat().st_size > 1000

@@ -379,9 +379,8 @@ class GFBModel:
     def foil_deflection(self, s: np.ndarray) -> np.ndarray:
         """Foil deflection ``Q`` per column (zero for the rigid foil)."""
         s = self.layout.check(s)
-        L = self.layout
         if self.structure is Structure.VISCOELASTIC:
-            return s[L.foil_slice].copy()
+            return self.layout.foil_state(s).copy()
         if self.structure is Structure.ELASTIC:
             return -(self.axial_mean_pressure(s) - 1.0) / self.foil_stiffness
         return np.zeros(self.grid.n_columns)

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from gfb_env.integrator import IntegrationError, TrapezoidalIntegrator, find_equilibrium
+from gfb_env.integrator import IntegrationError, Trajectory, TrapezoidalIntegrator, find_equilibrium
 from gfb_env.model import GFBModel
 
 
@@ -126,10 +126,12 @@ def test_recording_is_uniform_across_calls_and_schedule_is_linear(small_visco):
         it.advance(t, bearing_number=0.5 + t / 100, record_interval=0.25, record_indices=probes).trajectory
         for t in (3.1, 7.0, 10.0)
     ]
-    tau = np.concatenate([p.tau for p in parts])
+    whole = Trajectory.concatenate(parts)
+    tau = whole.tau
     np.testing.assert_allclose(np.diff(tau), 0.25, atol=1e-9)
     assert tau[0] == 0.0 and tau[-1] == pytest.approx(10.0)
-    lam = np.concatenate([p.bearing_number for p in parts])
+    assert whole.probes.shape == (len(tau), 3)
+    lam = whole.bearing_number
     np.testing.assert_allclose(lam, 0.5 + tau / 100, atol=1e-12)
     assert parts[0].probes.shape == (len(parts[0].tau), 3)
     assert it.bearing_number == pytest.approx(0.6)

@@ -8,7 +8,7 @@ export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
-.PHONY: venv demo test test-slow lint format bench clean
+.PHONY: venv demo test test-slow lint format bench bench-env agents-benchmark clean
 
 venv: $(STAMP)
 
@@ -40,6 +40,12 @@ format: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m experiments.bench_integrator
+
+bench-env: $(STAMP)
+	$(BIN)/python -m experiments.bench_env
+
+agents-benchmark: $(STAMP)
+	$(BIN)/python -m experiments.benchmark_agents
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache

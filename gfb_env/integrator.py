@@ -702,12 +702,11 @@ def _newton_equilibrium(
     s = s.copy()
     s[L.xi_dot_index] = 0.0
     s[L.eta_dot_index] = 0.0
-    grav = model.params.gravity_parameter * load_fraction
+    fp = model._fp.copy()  # the same parameters with the gravity scaled by the load fraction
+    fp[3] = model.params.gravity_parameter * load_fraction
 
     def residual(x):
         out = np.empty_like(x)
-        fp = model._fp.copy()
-        fp[3] = grav
         mn = K.rhs(x, lam, 1.0, model._ip, fp, model._sin, model._cos, out, model._H, model._Hd)
         return out, mn
 

@@ -37,7 +37,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from gfb_env import _kernels as K
-from gfb_env.params import BearingParameters, NondimensionalParameters
+from gfb_env.params import BearingParameters, NondimensionalParameters, check_positive
 
 __all__ = ["Structure", "Grid", "StateLayout", "GFBModel"]
 
@@ -224,8 +224,8 @@ class GFBModel:
             grid = Grid.parse(grid)
         self.grid = grid
         self.bearing = bearing if bearing is not None else BearingParameters()
-        if foil_stiffness is not None and not (math.isfinite(foil_stiffness) and foil_stiffness > 0):
-            raise ValueError(f"foil_stiffness must be finite and positive, got {foil_stiffness!r}")
+        if foil_stiffness is not None:
+            check_positive("foil_stiffness", foil_stiffness)
         self.params: NondimensionalParameters = self.bearing.nondimensional(foil_stiffness)
         self.layout = StateLayout(grid, self.structure)
         self._ip = np.array([grid.n_columns, grid.n_rows, self.structure.code], dtype=np.int64)
@@ -265,8 +265,7 @@ class GFBModel:
     def check_operating_point(bearing_number: float, foil_damping: float) -> None:
         if not (math.isfinite(bearing_number) and bearing_number >= 0):
             raise ValueError(f"bearing_number must be finite and non-negative, got {bearing_number!r}")
-        if not (math.isfinite(foil_damping) and foil_damping > 0):
-            raise ValueError(f"foil_damping must be finite and positive, got {foil_damping!r}")
+        check_positive("foil_damping", foil_damping)
 
     # ------------------------------------------------------------------------------------------
     def rhs(self, s: np.ndarray, bearing_number: float, foil_damping: float = 1.0) -> np.ndarray:

@@ -24,9 +24,17 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, fields, replace
 
-__all__ = ["BearingParameters", "NondimensionalParameters"]
+__all__ = ["BearingParameters", "NondimensionalParameters", "check_positive"]
 
 _RPM_TO_RAD_S = 2.0 * math.pi / 60.0
+
+
+def check_positive(name: str, value: float) -> float:
+    """``float(value)`` if finite and positive, else ``ValueError`` naming ``name``."""
+    value = float(value)
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be finite and positive, got {value!r}")
+    return value
 
 
 @dataclass(frozen=True)

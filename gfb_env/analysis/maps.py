@@ -25,6 +25,7 @@ import numpy as np
 from gfb_env.analysis.periodic import ShootingError, coast_down_fold, fold_bearing_number
 from gfb_env.analysis.stability import NoCriticalPointError, NoStableEquilibriumError, critical_bearing_number
 from gfb_env.model import GFBModel, Grid
+from gfb_env.params import check_positive
 from gfb_env.sweeps import run_sweep
 
 __all__ = [
@@ -283,9 +284,7 @@ def optimal_foil_damping(foil_stiffness: float, path: str | os.PathLike | None =
     """Optimum damping ``D_W*`` maximising ``Lambda_c`` at ``K_W = foil_stiffness``, from the committed
     stability map (per-stiffness parabola in ``log D_W``, then linear interpolation in ``log K_W``;
     clamped to the map's ``K_W`` range)."""
-    k = float(foil_stiffness)
-    if not (math.isfinite(k) and k > 0):
-        raise ValueError(f"foil_stiffness must be finite and positive, got {foil_stiffness!r}")
+    k = check_positive("foil_stiffness", foil_stiffness)
     m = load_stability_map(path)
     sel = m["structure"] == "viscoelastic"
     kws = np.unique(m["foil_stiffness"][sel])

@@ -59,6 +59,7 @@ import scipy.sparse.linalg as spla
 
 from gfb_env.integrator import TrapezoidalIntegrator, find_equilibrium
 from gfb_env.model import GFBModel
+from gfb_env.params import check_positive
 
 __all__ = [
     "ShootingError",
@@ -80,13 +81,6 @@ _T_SCALE = 10.0  # u_T = T / 10 in the arclength metric
 
 class ShootingError(RuntimeError):
     """The shooting Newton iteration (or the orbit sweep inside it) failed."""
-
-
-def _positive(name: str, value: float) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be finite and positive, got {value!r}")
-    return value
 
 
 # ------------------------------------------------------------------------------------------------
@@ -358,9 +352,9 @@ def find_periodic_orbit(
         ValueError: invalid arguments.
         ShootingError: Newton did not converge.
     """
-    lam = _positive("bearing_number", bearing_number)
-    dw = _positive("foil_damping", foil_damping)
-    T = _positive("period", period)
+    lam = check_positive("bearing_number", bearing_number)
+    dw = check_positive("foil_damping", foil_damping)
+    T = check_positive("period", period)
     if int(n_steps) < 20:
         raise ValueError(f"n_steps must be >= 20, got {n_steps!r}")
     state = model.layout.check(state)
@@ -423,9 +417,9 @@ def settle_whirl(
     and stops when the peak-to-peak ``xi`` of two consecutive windows agrees to ``settle_rtol``
     (whirl), falls below ``1e-4`` (equilibrium), on touchdown, or at ``tau_max``.
     """
-    lam = _positive("bearing_number", bearing_number)
-    dw = _positive("foil_damping", foil_damping)
-    _positive("window", window)
+    lam = check_positive("bearing_number", bearing_number)
+    dw = check_positive("foil_damping", foil_damping)
+    check_positive("window", window)
     L = model.layout
     if state is None:
         s = find_equilibrium(model, lam)
@@ -490,8 +484,8 @@ def periodic_orbit_from_simulation(
     """Seed the shooting from a (settled) whirl state: integrate about two periods, locate a maximum of
     ``xi`` (``xi' = 0``), take the state there and the spacing of the maxima as the period guess, and
     call :func:`find_periodic_orbit`."""
-    lam = _positive("bearing_number", bearing_number)
-    dw = _positive("foil_damping", foil_damping)
+    lam = check_positive("bearing_number", bearing_number)
+    dw = check_positive("foil_damping", foil_damping)
     T0 = period_guess if period_guess else 4 * math.pi / lam
     integ = TrapezoidalIntegrator(model, model.layout.check(state), lam, dw, rtol=1e-5, atol=1e-5)
     snap = integ.get_state()
@@ -686,7 +680,7 @@ def fold_bearing_number(
     """
     from gfb_env.analysis.stability import critical_bearing_number
 
-    dw = _positive("foil_damping", foil_damping)
+    dw = check_positive("foil_damping", foil_damping)
     if critical is None:
         critical = critical_bearing_number(model, dw).critical_bearing_number
     lam0 = critical + offset
@@ -751,9 +745,9 @@ def coast_down_fold(
     This is the paper's coast-down done quasi-statically; critical slowing-down near the fold lets the
     whirl survive a little below ``Lambda_fold``, so the estimate is biased low by about a step.
     """
-    dw = _positive("foil_damping", foil_damping)
-    lam = _positive("start_bearing_number", start_bearing_number)
-    _positive("step", step)
+    dw = check_positive("foil_damping", foil_damping)
+    lam = check_positive("start_bearing_number", start_bearing_number)
+    check_positive("step", step)
     if state is None:
         st = settle_whirl(model, lam, dw, tau_max=8000)
         if st.status != "whirl":

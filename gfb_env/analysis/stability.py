@@ -33,6 +33,7 @@ from scipy.optimize import brentq
 
 from gfb_env.integrator import EquilibriumError, find_equilibrium
 from gfb_env.model import GFBModel
+from gfb_env.params import check_positive
 
 __all__ = [
     "StabilityAnalysisError",
@@ -56,13 +57,6 @@ class NoStableEquilibriumError(StabilityAnalysisError):
 
 class NoCriticalPointError(StabilityAnalysisError):
     """The equilibrium stays stable up to the end of the scanned range: ``Lambda_c`` lies beyond it."""
-
-
-def _check_positive(name: str, value: float) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be finite and positive, got {value!r}")
-    return value
 
 
 def jacobian_eigenvalues(
@@ -131,8 +125,8 @@ def linear_stability(
         ValueError: for a non-positive ``bearing_number`` or ``foil_damping``.
         gfb_env.EquilibriumError: when no equilibrium is found.
     """
-    lam = _check_positive("bearing_number", bearing_number)
-    dw = _check_positive("foil_damping", foil_damping)
+    lam = check_positive("bearing_number", bearing_number)
+    dw = check_positive("foil_damping", foil_damping)
     if state is None:
         state = find_equilibrium(model, lam, guess=guess)
     ev = jacobian_eigenvalues(model, state, lam, dw)
@@ -212,12 +206,12 @@ def critical_bearing_number(
             elastic foil (paper Sect. 3.2).
         NoCriticalPointError: stable up to ``bearing_range[1]``.
     """
-    dw = _check_positive("foil_damping", foil_damping)
+    dw = check_positive("foil_damping", foil_damping)
     lo, hi = (float(bearing_range[0]), float(bearing_range[1]))
     if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
         raise ValueError(f"bearing_range must satisfy 0 < min < max, got {bearing_range!r}")
-    step = _check_positive("scan_step", scan_step)
-    _check_positive("xtol", xtol)
+    step = check_positive("scan_step", scan_step)
+    check_positive("xtol", xtol)
     evals = 0
     cache: dict[float, np.ndarray] = {}
     last_state: list[np.ndarray | None] = [None]

@@ -86,7 +86,9 @@ def main() -> None:
     print(
         f"gfb-env trapezoidal: wall {ours['wall_s']:.3f} s (median of {a.repeat}: "
         f"{', '.join(f'{w:.3f}' for w in walls)}), {ours['steps']} steps, {ours['us_per_step']:.1f} us/step, "
-        f"{ours['jacobians']} Jacobians, {ours['factorizations']} factorisations, "
+        f"{ours['jacobians']} Jacobians, {ours['factorizations']} factorisations (one per "
+        f"{ours['steps'] / ours['factorizations']:.1f} steps), {ours['rhs_evaluations']} right-hand sides "
+        f"({ours['rhs_evaluations'] / ours['steps']:.2f} per step), "
         f"max eccentricity (last {WINDOW:g}) {ours['max_eccentricity']:.5f}",
         flush=True,
     )

@@ -8,8 +8,12 @@ is solved by a modified Newton iteration on ``(I - h/2 J) ds = -r``.  J is the a
 its periodic block-tridiagonal + rotor-border form (:mod:`gfb_env._kernels`); the factorisation is
 reused across iterations and steps while the iteration converges fast, the Jacobian is refreshed when
 it slows down and the step is cut when even a fresh Jacobian fails (Hairer & Wanner, *Solving ODEs II*,
-Sect. IV.8).  The predictor extrapolates the last two *states* linearly; extrapolating k instead
-would amplify the slowly decaying stiff pressure modes that the trapezoidal rule does not damp.
+Sect. IV.8).  The predictor is the quadratic through the last three accepted *states* (linear after
+a restart).  Extrapolating k instead would amplify the slowly decaying stiff pressure modes that the
+trapezoidal rule does not damp; the quadratic state extrapolation amplifies their ringing only by 7
+(against 3 for linear) while its smooth error drops from O(h^2) to O(h^3), so two Newton iterations
+suffice for most steps (``python -m experiments.bench_integrator``: 3.7 against 4.05 right-hand
+sides per step).
 
 Local error control: the local truncation error of the trapezoidal rule is ``-h^3/12 s'''``; s''' is
 estimated by the divided difference of k over the last three points,
@@ -64,7 +68,8 @@ _DONE, _TOUCHDOWN, _FAILED, _MAX_STEPS = 0, 1, 2, 3
 _STATUS = {_DONE: "done", _TOUCHDOWN: "touchdown", _FAILED: "failed", _MAX_STEPS: "max_steps"}
 
 # scalar integrator state (float vector): time, next step, previous step, have previous step
-_T, _H, _HPREV, _HAVE_PREV = 0, 1, 2, 3
+# _HISTORY: how many earlier accepted states the predictor may use (0, 1 or 2)
+_T, _H, _HPREV, _HISTORY, _HPREV2 = 0, 1, 2, 3, 4
 # statistics (int vector)
 _NSTEPS, _NREJ_ERR, _NREJ_NEWTON, _NJAC, _NFACT, _NRHS, _NREC, _NBAD_H, _NDIVERGED = 0, 1, 2, 3, 4, 5, 6, 7, 8
 # extremes (float vector)
@@ -92,7 +97,7 @@ def _wnorm(dx, x, y, rtol, atol):
 
 @njit(cache=True)
 def _advance(
-    s, f, fprev, sprev, fs, t_end, lam0, lam1, dw0, dw1, ip, fp, sn, cs,
+    s, f, fprev, sprev, sprev2, fs, t_end, lam0, lam1, dw0, dw1, ip, fp, sn, cs,
     Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv,
     rtol, atol, h_min, h_max, touchdown, max_steps, max_newton, newton_tol,
     rec_idx, rec_dt, rec_next, rec_buf, stats, ext, fact_ratio, slow_iters,
@@ -165,7 +170,16 @@ def _advance(
             h_fact = hstep
         # predictor: linear extrapolation of the states (not of k, which rings in stiff modes)
         hp = fs[_HPREV]
-        if fs[_HAVE_PREV] > 0.0:
+        if fs[_HISTORY] >= 2.0:
+            # Lagrange weights of the quadratic through (-hp - hp2, sprev2), (-hp, sprev), (0, s) at hstep
+            hp2 = fs[_HPREV2]
+            ta = -hp - hp2
+            w2 = (hstep + hp) * hstep / (hp2 * (hp + hp2))
+            w1 = -(hstep - ta) * hstep / (hp2 * hp)
+            w0 = (hstep - ta) * (hstep + hp) / (ta * -hp)
+            for i in range(n):
+                x[i] = w0 * s[i] + w1 * sprev[i] + w2 * sprev2[i]
+        elif fs[_HISTORY] >= 1.0:
             c2 = hstep / hp
             for i in range(n):
                 x[i] = s[i] + c2 * (s[i] - sprev[i])
@@ -223,7 +237,7 @@ def _advance(
                     break
             continue
         # local error estimate from the divided difference of k, filtered through (I - h/2 J)^-1
-        if fs[_HAVE_PREV] > 0.0:
+        if fs[_HISTORY] >= 1.0:
             c3 = hstep**3 / 12.0 * 2.0 / (hstep + hp)
             for i in range(n):
                 r[i] = c3 * ((fnew[i] - f[i]) / hstep - (f[i] - fprev[i]) / hp)
@@ -263,10 +277,12 @@ def _advance(
         for i in range(n):
             fprev[i] = f[i]
             f[i] = fnew[i]
+            sprev2[i] = sprev[i]
             sprev[i] = s[i]
             s[i] = x[i]
+        fs[_HPREV2] = fs[_HPREV]
         fs[_HPREV] = hstep
-        fs[_HAVE_PREV] = 1.0
+        fs[_HISTORY] = min(fs[_HISTORY] + 1.0, 2.0)
         stats[_NSTEPS] += 1
         jac_fresh = False
         if iters > slow_iters:
@@ -408,8 +424,8 @@ class TrapezoidalIntegrator:
         min_step: float = 1e-7,
         touchdown_film_thickness: float = 0.01,
         max_newton_iterations: int = 6,
-        newton_tol: float = 0.2,
-        factorization_ratio: float = 1.5,
+        newton_tol: float = 0.3,
+        factorization_ratio: float = 2.0,
         slow_newton_iterations: int = 3,
     ):
         for name, v in (
@@ -463,7 +479,8 @@ class TrapezoidalIntegrator:
         self._f = self.model.rhs(s, self._lam, self._dw)
         self._fprev = np.zeros_like(s)
         self._sprev = s.copy()
-        self._fs = np.array([float(tau), self.first_step, 0.0, 0.0])
+        self._sprev2 = s.copy()
+        self._fs = np.array([float(tau), self.first_step, 0.0, 0.0, 0.0])
         self.stats = np.zeros(9, dtype=np.int64)
         self._last_record_tau = -math.inf
 
@@ -496,6 +513,7 @@ class TrapezoidalIntegrator:
             "f": self._f.copy(),
             "fprev": self._fprev.copy(),
             "sprev": self._sprev.copy(),
+            "sprev2": self._sprev2.copy(),
             "fs": self._fs.copy(),
             "lam": self._lam,
             "dw": self._dw,
@@ -508,6 +526,7 @@ class TrapezoidalIntegrator:
         self._f = snap["f"].copy()
         self._fprev = snap["fprev"].copy()
         self._sprev = snap["sprev"].copy()
+        self._sprev2 = snap["sprev2"].copy()
         self._fs = snap["fs"].copy()
         self._lam = float(snap["lam"])
         self._dw = float(snap["dw"])
@@ -579,7 +598,7 @@ class TrapezoidalIntegrator:
             rec_next += rec_dt
         b = self._blocks
         code = _advance(
-            self._s, self._f, self._fprev, self._sprev, self._fs,
+            self._s, self._f, self._fprev, self._sprev, self._sprev2, self._fs,
             float(tau_end), self._lam, lam1, self._dw, dw1,
             self.model._ip, self.model._fp, self.model._sin, self.model._cos,
             b["Ad"], b["Ap"], b["Am"], b["Er"], b["Rr"], b["Srr"],

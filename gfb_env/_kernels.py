@@ -291,10 +291,20 @@ def jacobian_blocks(s, lam, dw, ip, fp, sn, cs, F, H, Hd, Ad, Ap, Am, Er, Rr, Sr
 
 
 # ------------------------------------------------------------------------------------------------
-# small dense LU with partial pivoting (m <= ~12: loops beat LAPACK call overhead)
+# Linear algebra of I - hh J.  The block size m = nr (+1 for the foil deflection) is small (6 on the
+# paper grid), so hand loops beat LAPACK calls; the kernels take ``size_tag``, a tuple of length m, so
+# that numba compiles them once per block size with constant trip counts (the short inner loops then
+# unroll and vectorise: ~20 % off a solve).  n = len(tag) + extra with extra = 0 (pivot blocks) or 4
+# (the border).
+def size_tag(m: int) -> tuple:
+    """The ``size_tag`` argument of :func:`factor_system` / :func:`solve_system` for block size m."""
+    return (0,) * int(m)
+
+
 @njit(cache=True, fastmath=True)
-def _lu(A, piv):
-    n = A.shape[0]
+def _lu(A, piv, tag, extra):
+    """In-place LU with partial pivoting of the leading n x n part of A.  False if singular."""
+    n = len(tag) + extra
     for k in range(n):
         p = k
         amax = abs(A[k, k])
@@ -321,8 +331,8 @@ def _lu(A, piv):
 
 
 @njit(cache=True, fastmath=True)
-def _lu_solve(LU, piv, x):
-    n = LU.shape[0]
+def _lu_solve(LU, piv, x, tag, extra):
+    n = len(tag) + extra
     for k in range(n):
         p = piv[k]
         if p != k:
@@ -342,67 +352,55 @@ def _lu_solve(LU, piv, x):
 
 
 @njit(cache=True, fastmath=True)
-def _lu_solve_mat(LU, piv, X):
-    # row-oriented so that the innermost loop runs over contiguous columns of X
-    n = LU.shape[0]
-    ncol = X.shape[1]
+def _invert(A, piv, Ainv, tag):
+    """Ainv <- A^{-1} from the LU factors in A (m x m, m = len(tag))."""
+    n = len(tag)
+    for r in range(n):
+        for q in range(n):
+            Ainv[r, q] = 1.0 if r == q else 0.0
     for k in range(n):
         p = piv[k]
         if p != k:
-            for q in range(ncol):
-                tmp = X[k, q]
-                X[k, q] = X[p, q]
-                X[p, q] = tmp
+            for q in range(n):
+                tmp = Ainv[k, q]
+                Ainv[k, q] = Ainv[p, q]
+                Ainv[p, q] = tmp
     for r in range(n):
         for c in range(r):
-            a = LU[r, c]
-            if a != 0.0:
-                for q in range(ncol):
-                    X[r, q] -= a * X[c, q]
+            a = A[r, c]
+            for q in range(n):
+                Ainv[r, q] -= a * Ainv[c, q]
     for r in range(n - 1, -1, -1):
         for c in range(r + 1, n):
-            a = LU[r, c]
-            if a != 0.0:
-                for q in range(ncol):
-                    X[r, q] -= a * X[c, q]
-        inv = 1.0 / LU[r, r]
-        for q in range(ncol):
-            X[r, q] *= inv
-
-
-@njit(cache=True, fastmath=True)
-def _left_multiply(A, X, tmp):
-    """X <- A @ X for a small square A (tmp: workspace shaped like X)."""
-    n = A.shape[0]
-    ncol = X.shape[1]
-    for r in range(n):
-        for q in range(ncol):
-            tmp[r, q] = 0.0
-        for c in range(n):
             a = A[r, c]
-            for q in range(ncol):
-                tmp[r, q] += a * X[c, q]
-    for r in range(n):
-        for q in range(ncol):
-            X[r, q] = tmp[r, q]
+            for q in range(n):
+                Ainv[r, q] -= a * Ainv[c, q]
+        inv = 1.0 / A[r, r]
+        for q in range(n):
+            Ainv[r, q] *= inv
 
 
 @njit(cache=True, fastmath=True)
-def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv):
-    """Factor ``I - hh J`` (J in blocks).  Returns False if a pivot vanishes."""
+def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, sparse, size_tag):
+    """Factor ``I - hh J`` (J in blocks).  Returns False if a pivot vanishes.
+
+    ``sparse``: Am and Ap hold only their diagonal and last column (rigid and viscoelastic foil; the
+    elastic foil's Sherman-Morrison coupling fills them).  ``size_tag``: a tuple of length m.
+    """
     nc = Ad.shape[0]
-    m = Ad.shape[1]
+    m = len(size_tag)
     nb = m + 4
+    ml = m - 1
     last = nc - 1
-    inv = np.empty((m, m))
-    tmp_mm = np.empty((m, m))
-    tmp_mb = np.empty((m, nb))
+    work = np.empty((m, m))
+    tmp = np.empty(nb)
+    ytmp = np.empty((m, nb))
     # block-Thomas forward sweep over columns 1..nc-1
     for i in range(1, nc):
         for r in range(m):
             for q in range(m):
-                Dlu[i, r, q] = -hh * Ad[i, r, q]
-            Dlu[i, r, r] += 1.0
+                work[r, q] = -hh * Ad[i, r, q]
+            work[r, r] += 1.0
         if i > 1:
             # D_i -= L_i Uhat_{i-1},  L_i = -hh Am[i]  (Am is mostly diagonal: skip its zeros)
             for r in range(m):
@@ -410,45 +408,58 @@ def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv):
                     a = hh * Am[i, r, t]
                     if a != 0.0:
                         for q in range(m):
-                            Dlu[i, r, q] += a * Uhat[i - 1, t, q]
-        if not _lu(Dlu[i], Dpiv[i]):
+                            work[r, q] += a * Uhat[i - 1, t, q]
+        if not _lu(work, Dpiv[i], size_tag, 0):
             return False
         # keep the explicit inverse of D_i: the solves then run on matrix-vector products
-        for r in range(m):
-            for q in range(m):
-                inv[r, q] = 1.0 if r == q else 0.0
-        _lu_solve_mat(Dlu[i], Dpiv[i], inv)
-        for r in range(m):
-            for q in range(m):
-                Dlu[i, r, q] = inv[r, q]
+        _invert(work, Dpiv[i], Dlu[i], size_tag)
         if i < last:
-            for r in range(m):
-                for q in range(m):
-                    Uhat[i, r, q] = -hh * Ap[i, r, q]
-            _left_multiply(Dlu[i], Uhat[i], tmp_mm)
-    # Y = T^{-1} W
+            # Uhat_i = D_i^{-1} (-hh Ap[i])
+            if sparse:
+                for r in range(m):
+                    for q in range(ml):
+                        Uhat[i, r, q] = -hh * Dlu[i, r, q] * Ap[i, q, q]
+                    acc = 0.0
+                    for t in range(m):
+                        acc += Dlu[i, r, t] * Ap[i, t, ml]
+                    Uhat[i, r, ml] = -hh * acc
+            else:
+                for r in range(m):
+                    for q in range(m):
+                        acc = 0.0
+                        for t in range(m):
+                            acc += Dlu[i, r, t] * Ap[i, t, q]
+                        Uhat[i, r, q] = -hh * acc
+    # Y = T^{-1} W: the response of columns 1..nc-1 to the border unknowns [x_0, rotor]
     for i in range(1, nc):
         for r in range(m):
             for q in range(nb):
-                Y[i, r, q] = 0.0
+                tmp[q] = 0.0
             for q in range(4):
-                Y[i, r, m + q] = -hh * Er[i, r, q]
-        if i == 1:
-            for r in range(m):
+                tmp[m + q] = -hh * Er[i, r, q]
+            if i == 1:
                 for q in range(m):
-                    Y[i, r, q] += -hh * Am[1, r, q]
-        if i == last:
-            for r in range(m):
+                    tmp[q] -= hh * Am[1, r, q]
+            if i == last:
                 for q in range(m):
-                    Y[i, r, q] += -hh * Ap[last, r, q]
-        if i > 1:
-            for r in range(m):
+                    tmp[q] -= hh * Ap[last, r, q]
+            if i > 1:
                 for t in range(m):
                     a = hh * Am[i, r, t]
                     if a != 0.0:
                         for q in range(nb):
-                            Y[i, r, q] += a * Y[i - 1, t, q]
-        _left_multiply(Dlu[i], Y[i], tmp_mb)
+                            tmp[q] += a * Y[i - 1, t, q]
+            for q in range(nb):
+                Y[i, r, q] = tmp[q]
+        for r in range(m):
+            for q in range(nb):
+                acc = 0.0
+                for t in range(m):
+                    acc += Dlu[i, r, t] * Y[i, t, q]
+                ytmp[r, q] = acc
+        for r in range(m):
+            for q in range(nb):
+                Y[i, r, q] = ytmp[r, q]
     for i in range(last - 1, 0, -1):
         for r in range(m):
             for t in range(m):
@@ -477,49 +488,56 @@ def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv):
             b = hh * Am[0, r, t]
             for q in range(nb):
                 Slu[r, q] += a * Y[1, t, q] + b * Y[last, t, q]
-    for r in range(4):
+    for r in range(2, 4):  # rows 0, 1 of Rr are zero
         for i in range(1, nc):
             for t in range(m):
                 a = hh * Rr[i, r, t]
                 if a != 0.0:
                     for q in range(nb):
                         Slu[m + r, q] += a * Y[i, t, q]
-    return _lu(Slu, Spiv)
+    return _lu(Slu, Spiv, size_tag, 4)
 
 
 @njit(cache=True, fastmath=True)
-def solve_system(hh, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, rhs_vec, x, zb):
+def solve_system(hh, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, rhs_vec, x, zb, sparse, size_tag):
     """Solve ``(I - hh J) x = rhs_vec`` with the factors of :func:`factor_system`.
 
-    ``rhs_vec`` and ``x`` are in state layout; ``zb`` is workspace of shape (nc, m).
+    ``rhs_vec`` and ``x`` are in state layout; ``zb`` is workspace of shape (nc, m).  ``sparse``: the
+    off-diagonal blocks Am, Ap hold only their diagonal and last column (rigid and viscoelastic foil).
+    ``size_tag`` is any tuple of length m (see :func:`size_tag`).
     """
     nc = Am.shape[0]
-    m = Am.shape[1]
+    m = len(size_tag)
     nb = m + 4
     npres = nc * nr
     has_q = m > nr
     r0 = npres + (nc if has_q else 0)
     last = nc - 1
-    # gather column blocks
-    for i in range(nc):
-        for j in range(nr):
-            zb[i, j] = rhs_vec[i * nr + j]
-        if has_q:
-            zb[i, nr] = rhs_vec[npres + i]
+    ml = m - 1
     border = np.empty(nb)
-    for r in range(m):
-        border[r] = zb[0, r]
-    for r in range(4):
-        border[m + r] = rhs_vec[r0 + r]
-    # forward: z_i = D_i^{-1} (r_i - L_i z_{i-1}),  L_i = -hh Am[i],  Dlu[i] holds D_i^{-1}
     col = np.empty(m)
+    for r in range(nr):
+        zb[0, r] = rhs_vec[r]
+    if has_q:
+        zb[0, nr] = rhs_vec[npres]
+    # forward: z_i = D_i^{-1} (r_i - L_i z_{i-1}),  L_i = -hh Am[i],  Dlu[i] holds D_i^{-1}
     for i in range(1, nc):
-        for r in range(m):
-            acc = zb[i, r]
-            if i > 1:
-                for t in range(m):
-                    acc += hh * Am[i, r, t] * zb[i - 1, t]
-            col[r] = acc
+        for r in range(nr):
+            col[r] = rhs_vec[i * nr + r]
+        if has_q:
+            col[nr] = rhs_vec[npres + i]
+        if i > 1:
+            if sparse:
+                zl = zb[i - 1, ml]
+                for r in range(ml):
+                    col[r] += hh * (Am[i, r, r] * zb[i - 1, r] + Am[i, r, ml] * zl)
+                col[ml] += hh * Am[i, ml, ml] * zl
+            else:
+                for r in range(m):
+                    acc = 0.0
+                    for t in range(m):
+                        acc += Am[i, r, t] * zb[i - 1, t]
+                    col[r] += hh * acc
         for r in range(m):
             acc = 0.0
             for t in range(m):
@@ -536,26 +554,30 @@ def solve_system(hh, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, rhs_vec, x, 
         acc = 0.0
         for t in range(m):
             acc += Ap[0, r, t] * zb[1, t] + Am[0, r, t] * zb[last, t]
-        border[r] += hh * acc
-    for r in range(2, 4):  # rows 0, 1 of Rr are zero: xi' = xi_dot, eta' = eta_dot
+        border[r] = zb[0, r] + hh * acc
+    for r in range(2):  # rows 0, 1 of Rr are zero: xi' = xi_dot, eta' = eta_dot
+        border[m + r] = rhs_vec[r0 + r]
+    for r in range(2, 4):
         acc = 0.0
         for i in range(1, nc):
             for t in range(m):
                 acc += Rr[i, r, t] * zb[i, t]
-        border[m + r] += hh * acc
-    _lu_solve(Slu, Spiv, border)
-    for r in range(m):
-        zb[0, r] = border[r]
+        border[m + r] = rhs_vec[r0 + r] + hh * acc
+    _lu_solve(Slu, Spiv, border, size_tag, 4)
+    # back-substitute the border and scatter into state layout
+    for r in range(nr):
+        x[r] = border[r]
+    if has_q:
+        x[npres] = border[nr]
     for i in range(1, nc):
         for r in range(m):
             acc = 0.0
             for q in range(nb):
                 acc += Y[i, r, q] * border[q]
-            zb[i, r] -= acc
-    for i in range(nc):
-        for j in range(nr):
-            x[i * nr + j] = zb[i, j]
+            col[r] = zb[i, r] - acc
+        for r in range(nr):
+            x[i * nr + r] = col[r]
         if has_q:
-            x[npres + i] = zb[i, nr]
+            x[npres + i] = col[nr]
     for r in range(4):
         x[r0 + r] = border[m + r]

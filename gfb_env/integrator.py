@@ -100,7 +100,7 @@ def _advance(
     s, f, fprev, sprev, sprev2, fs, t_end, lam0, lam1, dw0, dw1, ip, fp, sn, cs,
     Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv,
     rtol, atol, h_min, h_max, touchdown, max_steps, max_newton, newton_tol,
-    rec_idx, rec_dt, rec_next, rec_buf, stats, ext, fact_ratio, slow_iters,
+    rec_idx, rec_dt, rec_next, rec_buf, stats, ext, fact_ratio, slow_iters, sparse, size_tag,
 ):  # fmt: skip
     n = s.shape[0]
     nc = ip[0]
@@ -158,7 +158,9 @@ def _advance(
             fact_valid = False
         if (not fact_valid) or hstep > h_fact * fact_ratio or hstep < h_fact / fact_ratio:
             stats[_NFACT] += 1
-            if not K.factor_system(0.5 * hstep, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv):
+            if not K.factor_system(
+                0.5 * hstep, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, sparse, size_tag
+            ):  # fmt: skip
                 fact_valid = False
                 h = 0.25 * hstep
                 stats[_NREJ_NEWTON] += 1
@@ -198,7 +200,9 @@ def _advance(
                 break
             for i in range(n):
                 r[i] = -(x[i] - s[i] - 0.5 * hstep * (f[i] + fx[i]))
-            K.solve_system(0.5 * h_fact, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, r, dx, zb)
+            K.solve_system(
+                0.5 * h_fact, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, r, dx, zb, sparse, size_tag
+            )  # fmt: skip
             for i in range(n):
                 x[i] += dx[i]
             dn = _wnorm(dx, x, s, rtol, atol)
@@ -247,7 +251,9 @@ def _advance(
                 r[i] = c3 * (fnew[i] - f[i])
         err = _wnorm(r, x, s, rtol, atol)
         if err > 1.0:  # only a rejected raw estimate is worth the filtering solve
-            K.solve_system(0.5 * h_fact, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, r, dx, zb)
+            K.solve_system(
+                0.5 * h_fact, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, r, dx, zb, sparse, size_tag
+            )  # fmt: skip
             err = _wnorm(dx, x, s, rtol, atol)
         if err > 1.0:
             stats[_NREJ_ERR] += 1
@@ -606,7 +612,7 @@ class TrapezoidalIntegrator:
             self.rtol, self.atol, self.min_step, self.max_step, self.touchdown_film_thickness,
             int(max_steps), self.max_newton_iterations, self.newton_tol,
             rec_idx, rec_dt, rec_next, rec_buf[first:], stats, ext, self.factorization_ratio,
-            self.slow_newton_iterations,
+            self.slow_newton_iterations, self.model.sparse_offdiagonal_blocks, K.size_tag(L.block_size),
         )  # fmt: skip
         self.stats += stats
         t = self.tau

@@ -286,6 +286,13 @@ class GFBModel:
         )
         return out
 
+    @property
+    def sparse_offdiagonal_blocks(self) -> bool:
+        """Whether the column-coupling Jacobian blocks (``Am``, ``Ap``) hold only their diagonal and
+        last column.  True for the rigid and viscoelastic foils; the elastic foil's Eq. (8) couples
+        every pressure of a column to its deflection, which fills them."""
+        return self.structure is not Structure.ELASTIC
+
     def new_blocks(self) -> dict[str, np.ndarray]:
         """Preallocated arrays for :func:`jacobian_blocks` (used by the integrator)."""
         nc, m = self.grid.n_columns, self.layout.block_size

@@ -59,6 +59,21 @@ def test_analytic_jacobian_paper_grid(rng):
 
 
 @pytest.mark.parametrize("structure", STRUCTURES)
+def test_sparse_offdiagonal_flag_matches_the_blocks(structure, rng):
+    """The solver skips Am / Ap entries off the diagonal and last column when the model says so."""
+    m = GFBModel(structure, grid="25x7", foil_stiffness=1.3)
+    b = m.jacobian_blocks(random_admissible_state(m, rng), 0.6, 0.8)
+    mm = m.layout.block_size
+    mask = ~np.eye(mm, dtype=bool)
+    mask[:, -1] = False
+    outside = max(np.abs(b[k][:, mask]).max() for k in ("Am", "Ap"))
+    if m.sparse_offdiagonal_blocks:
+        assert outside == 0.0
+    else:
+        assert outside > 1e-3
+
+
+@pytest.mark.parametrize("structure", STRUCTURES)
 def test_block_solver_matches_dense_solve(structure, rng):
     m = GFBModel(structure, grid="25x7", foil_stiffness=1.3)
     s = random_admissible_state(m, rng)
@@ -70,8 +85,23 @@ def test_block_solver_matches_dense_solve(structure, rng):
     Uhat, Y = np.zeros((nc, mm, mm)), np.zeros((nc, mm, nb))
     Slu, Spiv = np.zeros((nb, nb)), np.zeros(nb, np.int64)
     for hh in (1e-3, 0.3, 10.0):
+        sparse, tag = m.sparse_offdiagonal_blocks, K.size_tag(mm)
         assert K.factor_system(
-            hh, b["Ad"], b["Ap"], b["Am"], b["Er"], b["Rr"], b["Srr"], Dlu, Dpiv, Uhat, Y, Slu, Spiv
+            hh,
+            b["Ad"],
+            b["Ap"],
+            b["Am"],
+            b["Er"],
+            b["Rr"],
+            b["Srr"],
+            Dlu,
+            Dpiv,
+            Uhat,
+            Y,
+            Slu,
+            Spiv,
+            sparse,
+            tag,
         )
         r = rng.standard_normal(s.size)
         x = np.empty_like(r)
@@ -90,6 +120,8 @@ def test_block_solver_matches_dense_solve(structure, rng):
             r,
             x,
             np.empty((nc, mm)),
+            sparse,
+            tag,
         )
         np.testing.assert_allclose(x, np.linalg.solve(np.eye(s.size) - hh * J, r), rtol=1e-8, atol=1e-10)
 

@@ -16,6 +16,7 @@ import shutil
 from pathlib import Path
 
 from agents.evaluate import POLICIES_DIR
+from gfb_env import jsonio
 
 __all__ = ["export_policy"]
 
@@ -58,7 +59,7 @@ def export_policy(
     )
     info = {k: meta.get(k) for k in keys if k in meta}
     info["model"] = which
-    (dest / "policy.json").write_text(json.dumps(info, indent=2))
+    (dest / "policy.json").write_text(jsonio.dumps(info, indent=2))
     fe = meta.get("final_eval", {})
     lines = [
         f"# {name}",

@@ -40,6 +40,8 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
+from gfb_env import jsonio
+
 __all__ = ["ALGOS", "load_hyperparams", "make_vec_env_for", "train", "main", "plot_learning_curve"]
 
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
@@ -344,7 +346,7 @@ def train(
     prev = out / "run.json"
     if resume is not None and prev.exists():
         info["previous_runs"] = [json.loads(prev.read_text())]
-    prev.write_text(json.dumps(info, indent=2))
+    prev.write_text(jsonio.dumps(info, indent=2))
     plot_learning_curve(out, out / "learning_curve.png", title=f"{algo.upper()} on {env_id} (seed {seed})")
     venv.close()
     eval_env.close()

@@ -12,13 +12,13 @@ worst case (full speed with the least damping: whirl to touchdown).  The last li
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 import gymnasium as gym
 import numpy as np
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
+from gfb_env import jsonio
 from gfb_env.envs import ENV_IDS
 
 
@@ -129,7 +129,7 @@ def main() -> None:
             f"{env_id:28} {'random, 2 async':18} {r['env_steps']:5d} {r['wall_s']:7.2f} "
             f"{r['steps_per_s']:8.1f} {r['sim_s_per_wall_s']:12.3f}"
         )
-    print(json.dumps(results))
+    print(jsonio.dumps(results))
 
 
 if __name__ == "__main__":

@@ -7,18 +7,21 @@ settles into a large orbit (min film ~0.04), so both the easy and the near-conta
 Baselines get the same compiled right-hand side and the same analytic sparse Jacobian.  Their
 tolerance is the loosest of ``rtol in (1e-2, 3e-3, 1e-3, 3e-4, 1e-4)`` (atol = rtol / 10) whose
 maximum eccentricity over tau in [2500, 3000] matches ours within 1 %; the speed-up is the ratio of
-wall times at that matched accuracy.  Single process, one thread.  The last line is one JSON object.
+wall times at that matched accuracy.  Single process, one thread.  The last line is one JSON object,
+also written to ``results/bench_integrator/summary.json`` with the machine's load average (timings
+are only comparable on an idle machine).
 
-    python -m experiments.bench_integrator [--repeat 3] [--skip-scipy]
+    python -m experiments.bench_integrator [--repeat 3] [--skip-scipy] [--out DIR]
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
+import platform
 import statistics
 import time
+from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -27,6 +30,7 @@ import numpy as np  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 
 from experiments.convergence_study import benchmark_case  # noqa: E402
+from gfb_env import jsonio  # noqa: E402
 from gfb_env.integrator import TrapezoidalIntegrator  # noqa: E402
 
 LAMBDA, DAMPING, TAU_END, WINDOW = 0.6, 1.0, 3000.0, 500.0
@@ -76,7 +80,9 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--repeat", type=int, default=3, help="runs of our integrator (median wall time)")
     p.add_argument("--skip-scipy", action="store_true", help="only time our integrator")
+    p.add_argument("--out", type=Path, default=Path("results/bench_integrator"), help="output folder")
     a = p.parse_args()
+    load_start = os.getloadavg()[0]
     model, s0 = benchmark_case()
     TrapezoidalIntegrator(model, s0, LAMBDA, DAMPING).advance(1.0)  # compile outside the timing
     runs = [run_ours(model, s0) for _ in range(a.repeat)]
@@ -125,7 +131,12 @@ def main() -> None:
                     f"=> {method} at rtol={chosen['rtol']:g}: {summary[key]:.1f}x slower than ours",
                     flush=True,
                 )
-    print(json.dumps(summary))
+    summary["load_average_1min_at_start"] = load_start
+    summary["load_average_1min_at_end"] = os.getloadavg()[0]
+    summary["machine"] = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
+    a.out.mkdir(parents=True, exist_ok=True)
+    (a.out / "summary.json").write_text(jsonio.dumps(summary, indent=2))
+    print(jsonio.dumps(summary))
 
 
 if __name__ == "__main__":

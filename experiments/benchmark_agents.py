@@ -29,6 +29,7 @@ import gfb_env.envs  # noqa: F401  (registers the ids)
 from agents.evaluate import EpisodeResult, LearnedPolicy, evaluate, load_learned_policies, summarise
 from agents.nominal_map import NominalMap
 from agents.scripted import Policy, make_scripted_agents
+from gfb_env import jsonio
 
 TASKS = ("gfb_env/RunUp-v0", "gfb_env/RunUpRandomized-v0", "gfb_env/WhirlRecovery-v0")
 SEED0 = 10_000
@@ -347,7 +348,7 @@ def main(argv: list[str] | None = None) -> int:
     write_csv(rows, out / "benchmark_agents.csv")
     (out / "benchmark_agents.md").write_text(markdown_table(rows, episodes, skipped))
     (out / "benchmark_agents_paths.json").write_text(
-        json.dumps({f"{t}|{n}": v for (t, n), v in paths.items()})
+        jsonio.dumps({f"{t}|{n}": v for (t, n), v in paths.items()})
     )
     env = gym.make(usable[0], **env_kwargs.get(usable[0], {}))
     plot_paths(paths, NominalMap.from_env(env), out / "benchmark_agents_paths.png", all_tasks)
@@ -360,7 +361,7 @@ def main(argv: list[str] | None = None) -> int:
         "skipped": skipped,
         "wall_time_s_last_run": round(time.perf_counter() - t0, 1),
     }
-    (out / "benchmark_agents.json").write_text(json.dumps(meta, indent=2))
+    (out / "benchmark_agents.json").write_text(jsonio.dumps(meta, indent=2))
     print((out / "benchmark_agents.md").read_text())
     return 0
 

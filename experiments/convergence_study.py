@@ -12,13 +12,13 @@ against the tightest tolerance.  Writes ``results/convergence_study/convergence.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
+from gfb_env import jsonio
 from gfb_env.integrator import TrapezoidalIntegrator, find_equilibrium
 from gfb_env.model import GFBModel
 
@@ -80,19 +80,30 @@ def main(argv: list[str] | None = None) -> int:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
-    tol = np.array([r["rtol"] for r in rows[:-1]])
-    ax[0].loglog(tol, [max(r["relative_amplitude_error"], 1e-9) for r in rows[:-1]], "o-")
+    ok = [r for r in rows[:-1] if r["status"] == "done"]
+    ax[0].loglog([r["rtol"] for r in ok], [max(r["relative_amplitude_error"], 1e-9) for r in ok], "o-")
     ax[0].set_xlabel("rtol = atol")
     ax[0].set_ylabel(f"relative error of the limit-cycle amplitude\n(vs rtol = {rows[-1]['rtol']:g})")
     ax[0].grid(True, which="both", alpha=0.3)
-    ax[1].semilogx([r["rtol"] for r in rows], [r["steps"] for r in rows], "s-")
+    done = [r for r in rows if r["status"] == "done"]
+    stopped = [r for r in rows if r["status"] != "done"]
+    ax[1].semilogx([r["rtol"] for r in done], [r["steps"] for r in done], "s-", label="whole run")
+    if stopped:
+        ax[1].semilogx(
+            [r["rtol"] for r in stopped],
+            [r["steps"] for r in stopped],
+            "rx",
+            ms=9,
+            label="stopped early: spurious touchdown",
+        )
+        ax[1].legend()
     ax[1].set_xlabel("rtol = atol")
     ax[1].set_ylabel("accepted steps")
     ax[1].grid(True, which="both", alpha=0.3)
     fig.suptitle(f"viscoelastic K_W=1, D_W=1, Lambda=0.6, grid {grid}, tau 0..{tau_end:g}")
     fig.savefig(out / "convergence.png", dpi=110)
     for r in rows:
-        print(json.dumps(r))
+        print(jsonio.dumps(r))
     return 0
 
 

@@ -19,6 +19,7 @@ import json
 import time
 from pathlib import Path
 
+from gfb_env import jsonio
 from gfb_env.cli import equilibrium_summary
 from gfb_env.cli import main as gfb_main
 from gfb_env.integrator import find_equilibrium
@@ -38,8 +39,8 @@ def run(out: Path, duration: float) -> dict:
         "foil_stiffness": b.foil_stiffness,
         "kappa": b.kappa,
     }
-    (out / "params.json").write_text(json.dumps(params, indent=2))
-    print("== Table 1, nondimensional:", json.dumps({k: round(v, 6) for k, v in params.items()}))
+    (out / "params.json").write_text(jsonio.dumps(params, indent=2))
+    print("== Table 1, nondimensional:", jsonio.dumps({k: round(v, 6) for k, v in params.items()}))
     eq = {}
     lam = b.bearing_number
     for structure in ("rigid", "elastic", "viscoelastic"):
@@ -51,7 +52,7 @@ def run(out: Path, duration: float) -> dict:
             f"gamma = {e['attitude_angle_deg']:.1f} deg, H_min = {e['min_film_thickness']:.3f}, "
             f"force/load = {e['bearing_force'] / e['load']:.6f}"
         )
-    (out / "equilibria.json").write_text(json.dumps(eq, indent=2))
+    (out / "equilibria.json").write_text(jsonio.dumps(eq, indent=2))
     print("== transient: viscoelastic K_W=1, D_W=1, Lambda=0.6, from the perturbed equilibrium")
     code = gfb_main(
         [
@@ -91,7 +92,7 @@ def critical_stage(out: Path) -> list[dict]:
             f"{cp.critical_bearing_number:.4f} ({cp.critical_speed_rpm:.0f} rpm), "
             f"whirl ratio {cp.whirl_frequency_ratio:.3f}"
         )
-    (out / "critical.json").write_text(json.dumps(rows, indent=2))
+    (out / "critical.json").write_text(jsonio.dumps(rows, indent=2))
     return rows
 
 
@@ -124,7 +125,7 @@ def runup_stage(out: Path, seed: int = 0) -> dict:
         "path_bearing_number": res.path_bearing_number,
         "path_foil_damping": res.path_damping,
     }
-    (out / "runup_episode.json").write_text(json.dumps(d, indent=2))
+    (out / "runup_episode.json").write_text(jsonio.dumps(d, indent=2))
     print(
         f"== RunUp-v0 with {agent.name}: {res.termination_reason} after {res.steps} steps, return "
         f"{res.episode_return:.1f}, final speed {res.final_speed_rpm:.0f} rpm"

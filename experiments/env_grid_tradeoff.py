@@ -12,9 +12,9 @@ integrator defaults.  One core; timings on a shared machine.  Run::
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
+from gfb_env import jsonio
 from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.envs._stability import critical_bearing_number
 from gfb_env.integrator import TrapezoidalIntegrator, find_equilibrium
@@ -69,7 +69,7 @@ def main() -> None:
             f"{r['whirl_600tau_s']:10.3f} {r.get('whirl_max_eccentricity', float('nan')):8.3f} "
             f"{r.get('whirl_min_film', float('nan')):7.3f}"
         )
-    print(json.dumps(rows))
+    print(jsonio.dumps(rows))
 
 
 if __name__ == "__main__":

@@ -28,6 +28,7 @@ import time
 
 import numpy as np
 
+from gfb_env import jsonio
 from gfb_env.analysis.maps import optimum_from_curve
 from gfb_env.envs._data import NOMINAL_BEARING, TASK_CONSTANTS_PATH
 from gfb_env.envs._stability import (
@@ -124,7 +125,7 @@ def main() -> None:
             "seconds": time.perf_counter() - t0,
         }
     _write(out)
-    print(json.dumps({"written": str(TASK_CONSTANTS_PATH)}))
+    print(jsonio.dumps({"written": str(TASK_CONSTANTS_PATH)}))
 
 
 def _write(out: dict) -> None:
@@ -134,7 +135,7 @@ def _write(out: dict) -> None:
     nominal = {**merged.get("nominal", {}), **out["nominal"]}
     merged.update(out)
     merged["nominal"] = nominal
-    TASK_CONSTANTS_PATH.write_text(json.dumps(merged, indent=1))
+    TASK_CONSTANTS_PATH.write_text(jsonio.dumps(merged, indent=1))
 
 
 if __name__ == "__main__":

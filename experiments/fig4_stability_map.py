@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gfb_env import jsonio
 from gfb_env.analysis.maps import compute_stability_map, write_stability_map
 
 
@@ -72,8 +73,8 @@ def main(argv: list[str] | None = None) -> int:
         prev = json.loads(old.read_text())
         summary["wall_time_s"] = prev.get("wall_time_s", wall)
         summary["n_jobs"] = prev.get("n_jobs", a.n_jobs)
-    old.write_text(json.dumps(summary, indent=2))
-    print(json.dumps({k: summary[k] for k in ("grid", "wall_time_s", "rigid_critical_bearing_number")}))
+    old.write_text(jsonio.dumps(summary, indent=2))
+    print(jsonio.dumps({k: summary[k] for k in ("grid", "wall_time_s", "rigid_critical_bearing_number")}))
     print("wrote", *[str(p) for p in paths.values()])
     return 0
 

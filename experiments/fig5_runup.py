@@ -14,13 +14,12 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import time
 from pathlib import Path
 
 import numpy as np
 
-from gfb_env import GFBModel, Grid, TrapezoidalIntegrator, find_equilibrium
+from gfb_env import GFBModel, Grid, TrapezoidalIntegrator, find_equilibrium, jsonio
 
 
 def run_case(
@@ -197,9 +196,9 @@ def main(argv: list[str] | None = None) -> int:
             "min_film_thickness": min(x["min_film_thickness"] for x in rows),
             "wall_time_s": res["wall_time_s"],
         }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    (out / "summary.json").write_text(jsonio.dumps(summary, indent=2))
     plot(results, out / "runup_coastdown.png")
-    print(json.dumps(summary, indent=2))
+    print(jsonio.dumps(summary, indent=2))
     return 0
 
 

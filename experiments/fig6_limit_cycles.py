@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import math
 import time
 from pathlib import Path
@@ -22,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from gfb_env import GFBModel, Grid
+from gfb_env import GFBModel, Grid, jsonio
 from gfb_env.analysis import ShootingError, periodic_orbit_from_simulation, settle_whirl
 
 LAMBDA = 0.6
@@ -99,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
         "cases": rows,
         "wall_time_s": time.perf_counter() - t0,
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str))
+    (out / "summary.json").write_text(jsonio.dumps(summary, indent=2))
     for r in rows:
         print(r)
     return 0

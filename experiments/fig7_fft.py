@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import math
 import time
 from pathlib import Path
@@ -20,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from gfb_env import GFBModel, Grid, TrapezoidalIntegrator
+from gfb_env import GFBModel, Grid, TrapezoidalIntegrator, jsonio
 from gfb_env.analysis import amplitude_spectrum, dominant_frequency, settle_whirl
 
 LAMBDA = 0.6
@@ -110,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     fig.savefig(out / "fft.png", dpi=110)
     plt.close(fig)
     (out / "summary.json").write_text(
-        json.dumps({"grid": str(grid), "peaks": rows, "wall_time_s": time.perf_counter() - t0}, indent=2)
+        jsonio.dumps({"grid": str(grid), "peaks": rows, "wall_time_s": time.perf_counter() - t0}, indent=2)
     )
     for r in rows:
         print(r)

@@ -14,14 +14,13 @@ coast-down estimate as a cross-check.  The environments read ``hysteresis_map.cs
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 from pathlib import Path
 
 import numpy as np
 
-from gfb_env import BearingParameters
+from gfb_env import BearingParameters, jsonio
 from gfb_env.analysis import compute_hysteresis_map, write_hysteresis_map
 
 
@@ -73,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
             for r in rows
         ],
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str))
+    (out / "summary.json").write_text(jsonio.dumps(summary, indent=2))
     print("wrote", p)
     return 0
 

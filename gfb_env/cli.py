@@ -9,7 +9,6 @@ error and exit code 2.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -17,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gfb_env import jsonio
 from gfb_env._cli_common import (
     add_model_options,
     add_speed_options,
@@ -63,7 +63,7 @@ def cmd_params(args: argparse.Namespace) -> int:
         "force_scale_N": b.force_scale_n,
     }
     if args.json:
-        print(json.dumps(out))
+        print(jsonio.dumps(out))
     else:
         _print_table(out)
     return 0
@@ -99,7 +99,7 @@ def cmd_equilibrium(args: argparse.Namespace) -> int:
     s = find_equilibrium(model, lam)
     out = equilibrium_summary(model, s, lam)
     if args.json:
-        print(json.dumps(out))
+        print(jsonio.dumps(out))
     else:
         _print_table(out)
     return 0
@@ -163,7 +163,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         "steps": res.steps,
         "wall_time_s": wall,
     }
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+    (out_dir / "summary.json").write_text(jsonio.dumps(summary, indent=2))
     plot_simulation(
         tr,
         out_dir / "simulation.png",
@@ -171,7 +171,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         f"K_W={model.foil_stiffness:.3g}, D_W={args.foil_damping:.3g}",
     )
     if args.json:
-        print(json.dumps(summary))
+        print(jsonio.dumps(summary))
     else:
         _print_table({k: v for k, v in summary.items() if v is not None and v != ""})
         print(f"wrote {out_dir / 'trajectory.csv'}, {out_dir / 'simulation.png'}, {out_dir / 'summary.json'}")

@@ -8,7 +8,6 @@ raises :class:`ValueError` with a one-line message (``main`` turns it into an er
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -16,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gfb_env import jsonio
 from gfb_env._cli_common import add_model_options, model_from_args
 
 __all__ = ["add_analysis_commands", "cmd_critical", "cmd_hysteresis", "cmd_map"]
@@ -46,7 +46,7 @@ def cmd_critical(args: argparse.Namespace) -> int:
     d = cp.as_dict()
     d["wall_time_s"] = time.perf_counter() - t0
     if args.json:
-        print(json.dumps(d))
+        print(jsonio.dumps(d))
     else:
         print(f"{cp.structure} foil, K_W={cp.foil_stiffness:.4g}, D_W={cp.foil_damping:.4g}, grid {cp.grid}")
         print(f"  critical bearing number  Lambda_c = {cp.critical_bearing_number:.5f}")
@@ -104,7 +104,7 @@ def cmd_hysteresis(args: argparse.Namespace) -> int:
             d["coast_down_message"] = str(exc)
     d["wall_time_s"] = time.perf_counter() - t0
     if args.json:
-        print(json.dumps(d, default=float))
+        print(jsonio.dumps(d))
     else:
         lf = d["fold_bearing_number"]
         print(f"{cp.structure} foil, K_W={cp.foil_stiffness:.4g}, D_W={cp.foil_damping:.4g}, grid {cp.grid}")
@@ -174,7 +174,7 @@ def cmd_map(args: argparse.Namespace) -> int:
         "wall_time_s": time.perf_counter() - t0,
     }
     if args.json:
-        print(json.dumps(d))
+        print(jsonio.dumps(d))
     else:
         print(f"rigid Lambda_c = {smap.rigid:.5f}")
         for k, e, dopt, lmax in zip(kws, smap.elastic, smap.optimum_damping, smap.optimum_critical):

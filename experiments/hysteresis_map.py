@@ -7,8 +7,11 @@ start a whirl that survives), above ``Lambda_c`` only the whirl.  A few points a
 coast-down estimate as a cross-check.  The environments read ``hysteresis_map.csv`` through
 :func:`gfb_env.analysis.load_hysteresis_map`.
 
-    python -m experiments.hysteresis_map [--quick] [--out results/hysteresis_map] [--n-jobs 2]
+    python -m experiments.hysteresis_map [--quick | --tasks] [--out results/hysteresis_map] [--n-jobs 2]
                                          [--scheduler ADDRESS]
+
+``--tasks``: the environments' nominal bearing instead (K_W = 0.5007, t_B = 60.8 um) on their default
+31x7 grid, written to ``results/hysteresis_map_tasks``: where the bistable band of the RL tasks lies.
 """
 
 from __future__ import annotations
@@ -27,15 +30,29 @@ from gfb_env.analysis import compute_hysteresis_map, write_hysteresis_map
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="K_W=1, D_W=4 on a 33x7 grid (tests)")
+    ap.add_argument(
+        "--tasks",
+        action="store_true",
+        help="the environments' nominal bearing (K_W=0.5007) on their 31x7 grid, D_W 0.25..8",
+    )
     ap.add_argument("--out", default=None, help="output directory (default results/hysteresis_map)")
     ap.add_argument("--n-jobs", type=int, default=1, help="parallel workers")
     ap.add_argument("--scheduler", default=None, help="Dask scheduler address")
     ap.add_argument("--n-steps", type=int, default=300, help="trapezoidal steps per period in the shooting")
     a = ap.parse_args(argv)
-    out = Path(a.out or ("results/hysteresis_map_quick" if a.quick else "results/hysteresis_map"))
+    if a.quick and a.tasks:
+        ap.error("--quick and --tasks exclude each other")
+    default_out = "results/hysteresis_map" + ("_quick" if a.quick else "_tasks" if a.tasks else "")
+    out = Path(a.out or default_out)
     kw_table = round(BearingParameters().foil_stiffness, 4)
     if a.quick:
         kws, dws, grid, n_steps, cd = [1.0], [4.0], "33x7", 120, set()
+    elif a.tasks:
+        from gfb_env.envs import DEFAULT_GRID, NOMINAL_BEARING
+
+        kw_env = round(NOMINAL_BEARING.foil_stiffness, 4)
+        kws, dws, grid, n_steps = [kw_env], [0.25, 0.5, 1.0, 2.0, 4.0, 8.0], DEFAULT_GRID, a.n_steps
+        cd = {(kw_env, 2.0)}
     else:
         kws, dws, grid, n_steps = [1.0, kw_table], [0.5, 1.0, 2.0, 4.0, 8.0, 16.0], "79x7", a.n_steps
         cd = {(1.0, 1.0), (1.0, 4.0), (kw_table, 1.0)}
@@ -93,24 +110,34 @@ def _plot(rows: list[dict], kws: list[float], path: Path) -> None:
 
         lc, lf = col("critical_bearing_number"), col("fold_bearing_number")
         cd = col("coast_down_fold_bearing_number")
-        lf_fill = np.where(np.isfinite(lf), lf, lc)
+        known = np.isfinite(lf)
         top = np.nanmax(lc) * 1.15 if np.isfinite(lc).any() else 1.0
-        bot = np.nanmin(lf_fill) * 0.9 if np.isfinite(lf_fill).any() else 0.3
+        bot = np.nanmin(np.where(known, lf, lc)) * 0.9 if np.isfinite(lc).any() else 0.3
+        lf_fill = np.where(known, lf, lc)
         ax.fill_between(d, bot, lf_fill, color="tab:green", alpha=0.25, label="stable equilibrium only")
         ax.fill_between(
             d, lf_fill, lc, color="tab:orange", alpha=0.35, label="bistable (equilibrium + whirl)"
         )
         ax.fill_between(d, lc, top, color="tab:red", alpha=0.2, label="whirl only")
+        if not known.all():
+            # no fold from shooting there (the whirl touches down, or the shooting failed): below
+            # Lambda_c the equilibrium is stable, but whether a whirl coexists is not known
+            for x in d[~known]:
+                ax.axvline(x, color="0.4", ls=":", lw=1)
+            ax.plot(d[~known], lc[~known], "o", mfc="white", mec="k", ms=7, label="no fold found here")
         ax.plot(d, lc, "k-o", ms=4, label=r"$\Lambda_c$ (Hopf)")
         ax.plot(d, lf, "b-s", ms=4, label=r"$\Lambda_{fold}$ (shooting)")
         if np.isfinite(cd).any():
             ax.plot(d, cd, "mx", ms=8, mew=2, label=r"$\Lambda_{fold}$ (coast-down)")
         ax.set_xscale("log")
+        ax.set_xticks(d)
+        ax.set_xticklabels([f"{x:g}" for x in d])
+        ax.minorticks_off()
         ax.set_ylim(bot, top)
         ax.set_xlabel(r"foil damping $D_W$")
         ax.set_ylabel(r"bearing number $\Lambda$")
         ax.set_title(f"viscoelastic foil, $K_W$ = {kw:g}")
-        ax.legend(fontsize=8, loc="lower right")
+        ax.legend(fontsize=7, loc="upper left", framealpha=0.9)
         ax.grid(alpha=0.3)
     fig.savefig(path, dpi=110)
     plt.close(fig)

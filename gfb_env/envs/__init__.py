@@ -11,12 +11,21 @@ from __future__ import annotations
 
 from gymnasium.envs.registration import register, registry
 
+from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.envs.base import DEFAULT_GRID, GFBEnv
 from gfb_env.envs.run_up import RunUpEnv
 from gfb_env.envs.run_up_randomized import RunUpRandomizedEnv
 from gfb_env.envs.whirl_recovery import WhirlRecoveryEnv
 
-__all__ = ["GFBEnv", "RunUpEnv", "RunUpRandomizedEnv", "WhirlRecoveryEnv", "DEFAULT_GRID", "ENV_IDS"]
+__all__ = [
+    "GFBEnv",
+    "RunUpEnv",
+    "RunUpRandomizedEnv",
+    "WhirlRecoveryEnv",
+    "DEFAULT_GRID",
+    "NOMINAL_BEARING",
+    "ENV_IDS",
+]
 
 #: registered ids -> (entry point, max_episode_steps)
 _SPECS = {

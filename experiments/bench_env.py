@@ -4,15 +4,18 @@ Prints, for each registered task on one core, env steps per second and simulated
 wall-clock second under a seeded random policy, a vector env on two cores (``gymnasium.make_vec``,
 async), and the wall time of one full default RunUp-v0 episode with the scripted ramp policy
 (``RunUpEnv.scripted_action``: full motor rate toward the target at the optimum damping), plus the
-worst case (full speed with the least damping: whirl to touchdown).  The last line is JSON.  Run::
+worst case (full speed with the least damping: whirl to touchdown).  The last line is JSON, also
+written with the load average to ``results/bench_env/summary.json``.  Run::
 
-    OMP_NUM_THREADS=1 .venv/bin/python experiments/bench_env.py [--steps 40]
+    OMP_NUM_THREADS=1 .venv/bin/python -m experiments.bench_env [--steps 40] [--out DIR]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -54,6 +57,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--steps", type=int, default=40, help="control steps per random-policy run")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", type=Path, default=Path("results/bench_env"), help="output folder")
     args = ap.parse_args()
     results: dict = {"single_core": {}, "vector_2_cores": {}}
 
@@ -129,6 +133,9 @@ def main() -> None:
             f"{env_id:28} {'random, 2 async':18} {r['env_steps']:5d} {r['wall_s']:7.2f} "
             f"{r['steps_per_s']:8.1f} {r['sim_s_per_wall_s']:12.3f}"
         )
+    results["load_average_1min_at_end"] = os.getloadavg()[0]
+    args.out.mkdir(parents=True, exist_ok=True)
+    jsonio.write_json(args.out / "summary.json", results)
     print(jsonio.dumps(results))
 
 

@@ -317,12 +317,19 @@ def train(
         + ([_tqdm_progress_callback(remaining)] if progress_bar else [])
     )
     t0 = time.perf_counter()
-    model.learn(
-        total_timesteps=remaining,
-        callback=callbacks,
-        reset_num_timesteps=resume is None,
-        tb_log_name=f"{task}_{algo}",
-    )
+    interrupted = False
+    try:
+        model.learn(
+            total_timesteps=remaining,
+            callback=callbacks,
+            reset_num_timesteps=resume is None,
+            tb_log_name=f"{task}_{algo}",
+        )
+    except KeyboardInterrupt:
+        # Ctrl-C / SIGINT ends a long run cleanly: the model so far, its statistics and run.json are
+        # saved as for a finished run (with "interrupted": true), so it can be exported or resumed
+        interrupted = True
+        print(f"interrupted at {model.num_timesteps} timesteps; saving", file=sys.stderr)
     wall = time.perf_counter() - t0
     model.save(str(out / "model.zip"))
     if norm:
@@ -342,6 +349,7 @@ def train(
             k: (v if isinstance(v, (int, float, str, bool)) or v is None else repr(v)) for k, v in hp.items()
         },
         "final_eval": final,
+        "interrupted": interrupted,
     }
     prev = out / "run.json"
     if resume is not None and prev.exists():

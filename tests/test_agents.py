@@ -182,6 +182,39 @@ def test_resume_from_checkpoint(tmp_path):
     assert meta["timesteps"] >= 256 and meta["resumed_from"].endswith(ckpts[-1].name)
 
 
+def test_interrupted_training_is_saved_like_a_finished_run(tmp_path, monkeypatch):
+    """Ctrl-C during learn(): model, statistics and run.json (interrupted, actual timesteps) are saved."""
+    from stable_baselines3.common.callbacks import CheckpointCallback
+
+    def interrupt_after_64_steps(self):
+        if self.num_timesteps >= 64:
+            raise KeyboardInterrupt
+        return True
+
+    monkeypatch.setattr(CheckpointCallback, "_on_step", interrupt_after_64_steps)
+    env_id = "gfb_env/RunUp-v0"
+    out = train(
+        "sac",
+        env_id,
+        timesteps=256,
+        seed=1,
+        n_envs=1,
+        out=tmp_path / "run",
+        hyperparams=_tiny_yaml(tmp_path, "sac", env_id),
+        eval_freq=1000,
+        eval_episodes=1,
+        checkpoint_freq=1000,
+        progress_bar=False,
+        tensorboard=False,
+    )
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["interrupted"] is True
+    assert 64 <= meta["timesteps"] < 256
+    assert (out / "model.zip").exists() and (out / "vecnormalize.pkl").exists()
+    a, _ = LearnedPolicy(out).predict(gym.make(env_id).reset(seed=0)[0], deterministic=True)
+    assert np.all(np.isfinite(a))
+
+
 def test_train_cli_rejects_bad_arguments(capsys):
     with pytest.raises(SystemExit):
         train_main(["--algo", "dqn"])

@@ -56,6 +56,7 @@ def export_policy(
         "final_eval",
         "resumed_from",
         "previous_runs",
+        "interrupted",
     )
     info = {k: meta.get(k) for k in keys if k in meta}
     info["model"] = which
@@ -72,7 +73,8 @@ def export_policy(
         "",
         f"* seed {meta['seed']}, {meta['n_envs']} env(s), {meta['timesteps']} environment steps, "
         f"wall time {meta['wall_time_s'] / 60:.1f} min on the shared 2-core CPU machine"
-        + (" (plus the runs it resumed, see `policy.json`)" if meta.get("resumed_from") else ""),
+        + (" (plus the runs it resumed, see `policy.json`)" if meta.get("resumed_from") else "")
+        + (" (stopped by Ctrl-C before the requested total)" if meta.get("interrupted") else ""),
         f"* evaluation during training (deterministic, {fe.get('eval_episodes', '?')} episodes per point): "
         f"last mean return {fe.get('last_mean_return', float('nan')):.1f}, best "
         f"{fe.get('best_mean_return', float('nan')):.1f} at {fe.get('best_timesteps', '?')} steps",

@@ -89,26 +89,32 @@ def _tiny_yaml(tmp_path, algo: str, env_id: str):
     return p
 
 
+def _train_quick(tmp_path, algo: str, out_name: str, **overrides):
+    """``train`` on RunUp-v0 with the tiny hyperparameters, no progress bar, no TensorBoard."""
+    env_id = "gfb_env/RunUp-v0"
+    kwargs = dict(
+        timesteps=256,
+        seed=1,
+        n_envs=1,
+        out=tmp_path / out_name,
+        hyperparams=_tiny_yaml(tmp_path, algo, env_id),
+        eval_freq=10_000,
+        eval_episodes=1,
+        checkpoint_freq=10_000,
+        progress_bar=False,
+        tensorboard=False,
+    )
+    kwargs.update(overrides)
+    return train(algo, env_id, **kwargs)
+
+
 @pytest.mark.parametrize("algo", ["ppo", "sac"])
 def test_train_save_reload_predictions_unchanged(tmp_path, algo):
     from stable_baselines3 import PPO, SAC
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     env_id = "gfb_env/RunUp-v0"
-    out = train(
-        algo,
-        env_id,
-        timesteps=256,
-        seed=1,
-        n_envs=1,
-        out=tmp_path / "run",
-        hyperparams=_tiny_yaml(tmp_path, algo, env_id),
-        eval_freq=128,
-        eval_episodes=1,
-        checkpoint_freq=128,
-        progress_bar=False,
-        tensorboard=False,
-    )
+    out = _train_quick(tmp_path, algo, "run", eval_freq=128, checkpoint_freq=128)
     for f in ("model.zip", "vecnormalize.pkl", "run.json", "learning_curve.png", "eval/evaluations.npz"):
         assert (out / f).exists(), f
     meta = json.loads((out / "run.json").read_text())
@@ -138,22 +144,7 @@ def test_train_save_reload_predictions_unchanged(tmp_path, algo):
 
 
 def test_resume_from_checkpoint(tmp_path):
-    env_id = "gfb_env/RunUp-v0"
-    yml = _tiny_yaml(tmp_path, "ppo", env_id)
-    out = train(
-        "ppo",
-        env_id,
-        timesteps=128,
-        seed=0,
-        n_envs=1,
-        out=tmp_path / "r",
-        hyperparams=yml,
-        eval_freq=10_000,
-        eval_episodes=1,
-        checkpoint_freq=128,
-        progress_bar=False,
-        tensorboard=False,
-    )
+    out = _train_quick(tmp_path, "ppo", "r", timesteps=128, seed=0, checkpoint_freq=128)
     ckpts = sorted((out / "checkpoints").glob("*_steps.zip"))
     assert (
         ckpts
@@ -163,21 +154,7 @@ def test_resume_from_checkpoint(tmp_path):
             / ckpts[-1].name.replace("_128_steps", "_vecnormalize_128_steps").replace(".zip", ".pkl")
         ).exists()
     )
-    out2 = train(
-        "ppo",
-        env_id,
-        timesteps=256,
-        seed=0,
-        n_envs=1,
-        out=tmp_path / "r",
-        resume=ckpts[-1],
-        hyperparams=yml,
-        eval_freq=10_000,
-        eval_episodes=1,
-        checkpoint_freq=10_000,
-        progress_bar=False,
-        tensorboard=False,
-    )
+    out2 = _train_quick(tmp_path, "ppo", "r", seed=0, resume=ckpts[-1])
     meta = json.loads((out2 / "run.json").read_text())
     assert meta["timesteps"] >= 256 and meta["resumed_from"].endswith(ckpts[-1].name)
 
@@ -193,20 +170,7 @@ def test_interrupted_training_is_saved_like_a_finished_run(tmp_path, monkeypatch
 
     monkeypatch.setattr(CheckpointCallback, "_on_step", interrupt_after_64_steps)
     env_id = "gfb_env/RunUp-v0"
-    out = train(
-        "sac",
-        env_id,
-        timesteps=256,
-        seed=1,
-        n_envs=1,
-        out=tmp_path / "run",
-        hyperparams=_tiny_yaml(tmp_path, "sac", env_id),
-        eval_freq=1000,
-        eval_episodes=1,
-        checkpoint_freq=1000,
-        progress_bar=False,
-        tensorboard=False,
-    )
+    out = _train_quick(tmp_path, "sac", "run", eval_freq=1000, checkpoint_freq=1000)
     meta = json.loads((out / "run.json").read_text())
     assert meta["interrupted"] is True
     assert 64 <= meta["timesteps"] < 256

@@ -84,7 +84,10 @@ def main() -> None:
     a = p.parse_args()
     load_start = os.getloadavg()[0]
     model, s0 = benchmark_case()
+    t0 = time.perf_counter()
     TrapezoidalIntegrator(model, s0, LAMBDA, DAMPING).advance(1.0)  # compile outside the timing
+    first_call = time.perf_counter() - t0
+    print(f"first call (numba compile, or load from its on-disk cache): {first_call:.2f} s", flush=True)
     runs = [run_ours(model, s0) for _ in range(a.repeat)]
     walls = [r["wall_s"] for r in runs]
     ours = runs[0] | {"wall_s": statistics.median(walls)}
@@ -131,6 +134,7 @@ def main() -> None:
                     f"=> {method} at rtol={chosen['rtol']:g}: {summary[key]:.1f}x slower than ours",
                     flush=True,
                 )
+    summary["first_call_s"] = first_call
     summary["load_average_1min_at_start"] = load_start
     summary["load_average_1min_at_end"] = os.getloadavg()[0]
     summary["machine"] = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"

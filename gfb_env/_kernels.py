@@ -393,8 +393,7 @@ def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, sp
     ml = m - 1
     last = nc - 1
     work = np.empty((m, m))
-    tmp = np.empty(nb)
-    ytmp = np.empty((m, nb))
+    w = np.empty((m, nb))
     # block-Thomas forward sweep over columns 1..nc-1
     for i in range(1, nc):
         for r in range(m):
@@ -430,36 +429,32 @@ def factor_system(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, sp
                         for t in range(m):
                             acc += Dlu[i, r, t] * Ap[i, t, q]
                         Uhat[i, r, q] = -hh * acc
-    # Y = T^{-1} W: the response of columns 1..nc-1 to the border unknowns [x_0, rotor]
+    # Y = T^{-1} W: the response of columns 1..nc-1 to the border unknowns [x_0, rotor].
+    # Forward: Y_i = D_i^{-1} (W_i - L_i Y_{i-1}), the bracket staged in w (m x nb).
     for i in range(1, nc):
         for r in range(m):
-            for q in range(nb):
-                tmp[q] = 0.0
+            for q in range(m):
+                w[r, q] = 0.0
             for q in range(4):
-                tmp[m + q] = -hh * Er[i, r, q]
+                w[r, m + q] = -hh * Er[i, r, q]
             if i == 1:
                 for q in range(m):
-                    tmp[q] -= hh * Am[1, r, q]
+                    w[r, q] -= hh * Am[1, r, q]
             if i == last:
                 for q in range(m):
-                    tmp[q] -= hh * Ap[last, r, q]
+                    w[r, q] -= hh * Ap[last, r, q]
             if i > 1:
                 for t in range(m):
                     a = hh * Am[i, r, t]
                     if a != 0.0:
                         for q in range(nb):
-                            tmp[q] += a * Y[i - 1, t, q]
-            for q in range(nb):
-                Y[i, r, q] = tmp[q]
+                            w[r, q] += a * Y[i - 1, t, q]
         for r in range(m):
             for q in range(nb):
                 acc = 0.0
                 for t in range(m):
-                    acc += Dlu[i, r, t] * Y[i, t, q]
-                ytmp[r, q] = acc
-        for r in range(m):
-            for q in range(nb):
-                Y[i, r, q] = ytmp[r, q]
+                    acc += Dlu[i, r, t] * w[t, q]
+                Y[i, r, q] = acc
     for i in range(last - 1, 0, -1):
         for r in range(m):
             for t in range(m):

@@ -22,7 +22,7 @@ $(STAMP): pyproject.toml requirements.lock
 	@touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/python -m experiments.demo --out results/demo
+	$(BIN)/python -m gfb_experiments.demo --out results/demo
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
@@ -39,13 +39,13 @@ format: $(STAMP)
 	$(BIN)/ruff check --fix gfb_env agents experiments tests
 
 bench: $(STAMP)
-	$(BIN)/python -m experiments.bench_integrator
+	$(BIN)/python -m gfb_experiments.bench_integrator
 
 bench-env: $(STAMP)
-	$(BIN)/python -m experiments.bench_env
+	$(BIN)/python -m gfb_experiments.bench_env
 
 agents-benchmark: $(STAMP)
-	$(BIN)/python -m experiments.benchmark_agents
+	$(BIN)/python -m gfb_experiments.benchmark_agents
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache

@@ -1,7 +1,7 @@
 """Evaluate scripted and learned policies alike on gfb_env tasks.
 
 * :class:`LearnedPolicy` wraps a committed SB3 model (``model.zip``) and its VecNormalize statistics
-  (``vecnormalize.pkl``) behind the :class:`~agents.scripted.Policy` interface: ``predict`` normalises the
+  (``vecnormalize.pkl``) behind the :class:`~gfb_agents.scripted.Policy` interface: ``predict`` normalises the
   raw observation with the saved statistics and calls the model.
 * :func:`run_episode` plays one seeded episode and returns an :class:`EpisodeResult` (return, success,
   time to target, final speed, max whirl amplitude, touchdown, the (Lambda, D_W) path).
@@ -21,7 +21,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from agents.scripted import Policy
+from gfb_agents.scripted import Policy
 
 __all__ = [
     "LearnedPolicy",
@@ -37,7 +37,7 @@ POLICIES_DIR = Path(__file__).resolve().parent / "policies"
 
 
 class LearnedPolicy(Policy):
-    """An SB3 model with its observation normalisation (the files ``agents.train`` writes).
+    """An SB3 model with its observation normalisation (the files ``gfb_agents.train`` writes).
 
     Args:
         path: a directory with ``model.zip`` (+ ``vecnormalize.pkl``, + ``run.json`` naming the algo and

@@ -1,11 +1,11 @@
 """Copy a trained policy from a run directory (``runs/...``, gitignored) into ``agents/policies/<name>/``.
 
-    python -m agents.export_policy RUN_DIR NAME [--which {final,best}]
+    python -m gfb_agents.export_policy RUN_DIR NAME [--which {final,best}]
 
 Copies ``model.zip`` and ``vecnormalize.pkl`` (final, or EvalCallback's best with its statistics), the
 learning curve, and writes ``policy.json`` (algo, env id, seed, command, wall time, timesteps, final
 evaluation, which model) and a ``README.md`` stating the same.  The evaluator
-(:class:`agents.evaluate.LearnedPolicy`) reads ``policy.json``.
+(:class:`gfb_agents.evaluate.LearnedPolicy`) reads ``policy.json``.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import json
 import shutil
 from pathlib import Path
 
-from agents.evaluate import POLICIES_DIR
+from gfb_agents.evaluate import POLICIES_DIR
 from gfb_env import jsonio
 
 __all__ = ["export_policy"]
@@ -28,7 +28,7 @@ def export_policy(
     run = Path(run_dir)
     meta_p = run / "run.json"
     if not meta_p.exists():
-        raise FileNotFoundError(f"{run} has no run.json (not an agents.train output directory)")
+        raise FileNotFoundError(f"{run} has no run.json (not a gfb_agents.train output directory)")
     if which not in ("final", "best"):
         raise ValueError(f"which must be 'final' or 'best', got {which!r}")
     meta = json.loads(meta_p.read_text())
@@ -79,7 +79,7 @@ def export_policy(
         f"last mean return {fe.get('last_mean_return', float('nan')):.1f}, best "
         f"{fe.get('best_mean_return', float('nan')):.1f} at {fe.get('best_timesteps', '?')} steps",
         "* files: `model.zip` (SB3), `vecnormalize.pkl` (observation statistics; load with "
-        "`agents.evaluate.LearnedPolicy`), `learning_curve.png`, `policy.json`",
+        "`gfb_agents.evaluate.LearnedPolicy`), `learning_curve.png`, `policy.json`",
         "* benchmark results: `results/benchmark_agents.md`",
         "",
         "![learning curve](learning_curve.png)",
@@ -90,7 +90,9 @@ def export_policy(
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m agents.export_policy", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m gfb_agents.export_policy", description=__doc__.splitlines()[0]
+    )
     ap.add_argument("run_dir")
     ap.add_argument("name", help="directory name under agents/policies, e.g. WhirlRecovery_sac")
     ap.add_argument("--which", choices=("final", "best"), default="final")

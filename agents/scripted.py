@@ -1,6 +1,6 @@
 """Scripted baselines for the gfb_env tasks, behind one small SB3-like policy interface.
 
-Every agent (scripted here, learned in :mod:`agents.evaluate`) implements::
+Every agent (scripted here, learned in :mod:`gfb_agents.evaluate`) implements::
 
     policy.reset()                                           # forget everything (a new episode)
     action, state = policy.predict(obs, state=None, episode_start=None, deterministic=True)
@@ -9,7 +9,7 @@ Every agent (scripted here, learned in :mod:`agents.evaluate`) implements::
 ``episode_start`` (a bool or an array of them, as SB3 passes it) resets the memory of the matching env.
 Scripted agents read only the documented observation (indices below), the env's documented
 configuration (:class:`ControlSpec`: action mapping, motor limit, control interval, nominal task
-target) and the nominal map (:class:`~agents.nominal_map.NominalMap`); never the drawn parameters nor
+target) and the nominal map (:class:`~gfb_agents.nominal_map.NominalMap`); never the drawn parameters nor
 the simulator state.
 
 Observation indices (``gfb_env.envs`` docstrings): 0, 1 journal position; 2, 3 velocity; 4, 5 orbit
@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.nominal_map import NominalMap
+from gfb_agents.nominal_map import NominalMap
 from gfb_env.envs.base import OBS_ETA_EXTENT, OBS_SPEED, OBS_XI_EXTENT
 
 __all__ = [

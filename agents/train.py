@@ -1,6 +1,6 @@
 """Train a Stable-Baselines3 agent (PPO or SAC) on a gfb_env task.
 
-    python -m agents.train --algo {ppo,sac} --env gfb_env/RunUpRandomized-v0 [--timesteps N] [--seed S]
+    python -m gfb_agents.train --algo {ppo,sac} --env gfb_env/RunUpRandomized-v0 [--timesteps N] [--seed S]
                            [--n-envs K] [--resume CHECKPOINT.zip] [--out DIR] [--hyperparams FILE]
                            [--env-kwargs JSON] [--eval-freq N] [--eval-episodes N]
                            [--checkpoint-freq N] [--no-progress-bar]
@@ -344,7 +344,7 @@ def train(
         "timesteps": int(model.num_timesteps),
         "wall_time_s": round(wall, 1),
         "resumed_from": str(resume) if resume else None,
-        "command": command or "python -m agents.train " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
+        "command": command or "python -m gfb_agents.train " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
         "hyperparams": {
             k: (v if isinstance(v, (int, float, str, bool)) or v is None else repr(v)) for k, v in hp.items()
         },
@@ -448,7 +448,7 @@ def plot_learning_curve(run_dir: str | Path, path: str | Path, title: str = "") 
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m agents.train", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m gfb_agents.train", description=__doc__.splitlines()[0])
     ap.add_argument("--algo", required=True, choices=ALGOS)
     ap.add_argument("--env", default="gfb_env/RunUpRandomized-v0", help="registered env id")
     ap.add_argument(
@@ -492,7 +492,7 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"--env-kwargs is not valid JSON: {exc}")
         if not isinstance(env_kwargs, dict):
             ap.error("--env-kwargs must be a JSON object")
-    cmd = "python -m agents.train " + " ".join(
+    cmd = "python -m gfb_agents.train " + " ".join(
         shlex.quote(x) for x in (argv if argv is not None else sys.argv[1:])
     )
     try:

@@ -7,7 +7,7 @@ async), and the wall time of one full default RunUp-v0 episode with the scripted
 worst case (full speed with the least damping: whirl to touchdown).  The last line is JSON, also
 written with the load average to ``results/bench_env/summary.json``.  Run::
 
-    OMP_NUM_THREADS=1 .venv/bin/python -m experiments.bench_env [--steps 40] [--out DIR]
+    OMP_NUM_THREADS=1 .venv/bin/python -m gfb_experiments.bench_env [--steps 40] [--out DIR]
 """
 
 from __future__ import annotations

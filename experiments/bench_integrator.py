@@ -11,7 +11,7 @@ wall times at that matched accuracy.  Single process, one thread.  The last line
 also written to ``results/bench_integrator/summary.json`` with the machine's load average (timings
 are only comparable on an idle machine).
 
-    python -m experiments.bench_integrator [--repeat 3] [--skip-scipy] [--out DIR]
+    python -m gfb_experiments.bench_integrator [--repeat 3] [--skip-scipy] [--out DIR]
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 
-from experiments.convergence_study import benchmark_case  # noqa: E402
+from gfb_experiments.convergence_study import benchmark_case  # noqa: E402
 from gfb_env import jsonio  # noqa: E402
 from gfb_env.integrator import TrapezoidalIntegrator  # noqa: E402
 

@@ -1,11 +1,11 @@
 """Run-up benchmark: every scripted baseline and every committed learned policy on every task.
 
-    python -m experiments.benchmark_agents [--episodes 50] [--quick] [--tasks ID,ID] [--agents NAME,NAME]
+    python -m gfb_experiments.benchmark_agents [--episodes 50] [--quick] [--tasks ID,ID] [--agents NAME,NAME]
                                            [--out results] [--n-jobs 1]
 
 Each (task, agent) pair plays the same fixed, seeded episodes (seeds ``10000, 10001, ...``; the env is
 reset with the seed, the policy is deterministic), and the results are reduced to one row
-(:func:`agents.evaluate.summarise`).  Writes ``<out>/benchmark_agents.csv``, ``<out>/benchmark_agents.md``
+(:func:`gfb_agents.evaluate.summarise`).  Writes ``<out>/benchmark_agents.csv``, ``<out>/benchmark_agents.md``
 (the Markdown table) and ``<out>/benchmark_agents_paths.png`` (each agent's first episode as a path in the
 (Lambda, D_W) plane over the stable / bistable / whirl regions of the nominal bearing's map; the paths are
 also kept in ``benchmark_agents_paths.json``).  ``--quick`` plays one episode per pair (for tests);
@@ -26,9 +26,9 @@ import gymnasium as gym
 import numpy as np
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
-from agents.evaluate import EpisodeResult, LearnedPolicy, evaluate, load_learned_policies, summarise
-from agents.nominal_map import NominalMap
-from agents.scripted import Policy, make_scripted_agents
+from gfb_agents.evaluate import EpisodeResult, LearnedPolicy, evaluate, load_learned_policies, summarise
+from gfb_agents.nominal_map import NominalMap
+from gfb_agents.scripted import Policy, make_scripted_agents
 from gfb_env import jsonio
 
 TASKS = ("gfb_env/RunUp-v0", "gfb_env/RunUpRandomized-v0", "gfb_env/WhirlRecovery-v0")
@@ -176,7 +176,7 @@ def markdown_table(rows: list[dict], episodes: int, skipped: dict[str, str]) -> 
     )
     lines = [
         f"Benchmark: {episodes} seeded episodes per (task, agent) (seeds {SEED0}...{SEED0 + episodes - 1}); "
-        "`python -m experiments.benchmark_agents`.",
+        "`python -m gfb_experiments.benchmark_agents`.",
         "",
         head,
         "|" + "---|" * 9,
@@ -279,7 +279,7 @@ def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> N
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
-        prog="python -m experiments.benchmark_agents", description=__doc__.splitlines()[0]
+        prog="python -m gfb_experiments.benchmark_agents", description=__doc__.splitlines()[0]
     )
     ap.add_argument("--episodes", type=int, default=50, help="seeded episodes per (task, agent) (>= 1)")
     ap.add_argument("--quick", action="store_true", help="one episode per pair (for tests)")

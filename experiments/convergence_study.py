@@ -6,7 +6,7 @@ D_W = 1, Lambda = 0.6, from the equilibrium displaced by 0.01 C, tau = 0..3000. 
 the minimum film thickness there, the step count and the wall time, and the relative amplitude error
 against the tightest tolerance.  Writes ``results/convergence_study/convergence.csv`` and ``.png``.
 
-    python -m experiments.convergence_study [--quick]
+    python -m gfb_experiments.convergence_study [--quick]
 """
 
 from __future__ import annotations

@@ -99,8 +99,8 @@ def critical_stage(out: Path) -> list[dict]:
 def runup_stage(out: Path, seed: int = 0) -> dict:
     import gymnasium as gym
 
-    from agents.evaluate import run_episode
-    from agents.scripted import make_scripted_agents
+    from gfb_agents.evaluate import run_episode
+    from gfb_agents.scripted import make_scripted_agents
 
     env = gym.make("gfb_env/RunUp-v0", render_mode="rgb_array")
     agent = next(a for name, a in make_scripted_agents(env).items() if name.startswith("map_informed"))

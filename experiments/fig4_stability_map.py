@@ -4,7 +4,7 @@ Viscoelastic foil on a log-spaced K_W x D_W grid, the elastic curve over K_W and
 ``Lambda_c`` from the eigenvalues of the analytic Jacobian (:func:`gfb_env.analysis.critical_bearing_number`),
 swept in parallel and resumably by :func:`gfb_env.sweeps.run_sweep`.
 
-    python -m experiments.fig4_stability_map [--quick] [--out results/fig4_stability_map] [--n-jobs 2]
+    python -m gfb_experiments.fig4_stability_map [--quick] [--out results/fig4_stability_map] [--n-jobs 2]
                                              [--scheduler tcp://host:8786]
 
 Writes ``stability_map.csv`` (one row per configuration), ``optimum_damping.csv``, ``summary.json``,

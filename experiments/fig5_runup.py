@@ -7,7 +7,7 @@ optimum ``D_W*(K_W)`` (maximum ``Lambda_c``) read from the committed stability m
 windows of 100 tau) of xi, eta and the midplane pressure P(phi=0, Z=0).  Time scale: tau = 50 000 is
 50 000 T = 7.95 s with T = 1.59e-4 s (the paper's "50 s" does not follow from its own T).
 
-    python -m experiments.fig5_runup [--quick] [--out results/fig5_runup] [--n-jobs 2] [--foil-damping D]
+    python -m gfb_experiments.fig5_runup [--quick] [--out results/fig5_runup] [--n-jobs 2] [--foil-damping D]
 """
 
 from __future__ import annotations

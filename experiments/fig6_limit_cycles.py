@@ -7,7 +7,7 @@ followed into the bistable band where a small kick would decay; each run integra
 settles (:func:`gfb_env.analysis.settle_whirl`).  The final orbit is also converged by shooting
 (:func:`gfb_env.analysis.periodic_orbit_from_simulation`) for its period and Floquet multipliers.
 
-    python -m experiments.fig6_limit_cycles [--quick] [--out results/fig6_limit_cycles]
+    python -m gfb_experiments.fig6_limit_cycles [--quick] [--out results/fig6_limit_cycles]
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ each run starts from the previous settled whirl (D_W ascending), integrates unti
 then records ``tail`` tau more at dtau = 0.25; the Hann-windowed amplitude spectrum of xi
 (:func:`gfb_env.analysis.amplitude_spectrum`) is plotted against omega / Lambda.
 
-    python -m experiments.fig7_fft [--quick] [--out results/fig7_fft]
+    python -m gfb_experiments.fig7_fft [--quick] [--out results/fig7_fft]
 """
 
 from __future__ import annotations

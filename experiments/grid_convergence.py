@@ -4,7 +4,7 @@ Equilibrium eccentricity at Lambda = 0.6 (Table 1; rigid and viscoelastic foil) 
 and in Z, and the relative difference to the finest grid.  Writes
 ``results/grid_convergence/grid_convergence.csv``.
 
-    python -m experiments.grid_convergence
+    python -m gfb_experiments.grid_convergence
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ start a whirl that survives), above ``Lambda_c`` only the whirl.  A few points a
 coast-down estimate as a cross-check.  The environments read ``hysteresis_map.csv`` through
 :func:`gfb_env.analysis.load_hysteresis_map`.
 
-    python -m experiments.hysteresis_map [--quick | --tasks] [--out results/hysteresis_map] [--n-jobs 2]
+    python -m gfb_experiments.hysteresis_map [--quick | --tasks] [--out results/hysteresis_map] [--n-jobs 2]
                                          [--scheduler ADDRESS]
 
 ``--tasks``: the environments' nominal bearing instead (K_W = 0.5007, t_B = 60.8 um) on their default

@@ -12,7 +12,7 @@ Sect. IV.8).  The predictor is the quadratic through the last three accepted *st
 a restart).  Extrapolating k instead would amplify the slowly decaying stiff pressure modes that the
 trapezoidal rule does not damp; the quadratic state extrapolation amplifies their ringing only by 7
 (against 3 for linear) while its smooth error drops from O(h^2) to O(h^3), so two Newton iterations
-suffice for most steps (``python -m experiments.bench_integrator``: 3.7 against 4.05 right-hand
+suffice for most steps (``python -m gfb_experiments.bench_integrator``: 3.7 against 4.05 right-hand
 sides per step).
 
 Local error control: the local truncation error of the trapezoidal rule is ``-h^3/12 s'''``; s''' is
@@ -402,7 +402,7 @@ class TrapezoidalIntegrator:
         foil_damping: D_W at the initial time (viscoelastic foil only).
         tau: initial nondimensional time.
         rtol, atol: local error tolerances (weighted max-norm).  Default 3e-4 from the convergence
-            study of the limit-cycle amplitude (``python -m experiments.convergence_study``): the
+            study of the limit-cycle amplitude (``python -m gfb_experiments.convergence_study``): the
             amplitude is within 0.06 % and the minimum film within 5 % of the rtol = 3e-5 result, at the
             same cost as 3e-3 (below ~1e-3 the step is limited by Newton convergence near contact,
             not by the error estimate).

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 import gfb_env.envs  # noqa: F401
-from agents.evaluate import LearnedPolicy, run_episode, summarise
-from agents.nominal_map import NominalMap
-from agents.scripted import ControlSpec, MapInformedAgent, make_scripted_agents
-from agents.train import load_hyperparams, train
-from agents.train import main as train_main
+from gfb_agents.evaluate import LearnedPolicy, run_episode, summarise
+from gfb_agents.nominal_map import NominalMap
+from gfb_agents.scripted import ControlSpec, MapInformedAgent, make_scripted_agents
+from gfb_agents.train import load_hyperparams, train
+from gfb_agents.train import main as train_main
 
 TASKS = ("gfb_env/RunUp-v0", "gfb_env/RunUpRandomized-v0", "gfb_env/WhirlRecovery-v0")
 SHORT = 25  # control steps per test episode
@@ -192,7 +192,7 @@ def test_train_cli_rejects_bad_arguments(capsys):
 
 
 def test_benchmark_quick_writes_table(tmp_path):
-    from experiments.benchmark_agents import COLUMNS, main
+    from gfb_experiments.benchmark_agents import COLUMNS, main
 
     assert main(["--quick", "--out", str(tmp_path), "--policies", str(tmp_path / "none")]) == 0
     rows = list(csv.DictReader((tmp_path / "benchmark_agents.csv").open()))
@@ -225,7 +225,7 @@ def test_benchmark_quick_writes_table(tmp_path):
 
 
 def test_benchmark_cli_rejects_bad_arguments(tmp_path):
-    from experiments.benchmark_agents import main
+    from gfb_experiments.benchmark_agents import main
 
     with pytest.raises(SystemExit):
         main(["--episodes", "0", "--out", str(tmp_path)])
@@ -236,7 +236,7 @@ def test_benchmark_cli_rejects_bad_arguments(tmp_path):
 
 
 def test_committed_policies_load_and_act():
-    from agents.evaluate import load_learned_policies
+    from gfb_agents.evaluate import load_learned_policies
 
     pols = load_learned_policies()
     assert {p.env_id for p in pols} >= {"gfb_env/RunUpRandomized-v0", "gfb_env/WhirlRecovery-v0"}

@@ -266,7 +266,9 @@ def load_stability_map(path: str | os.PathLike | None = None) -> dict[str, np.nd
     ``critical_bearing_number`` (NaN where empty)."""
     p = Path(path) if path is not None else RESULTS_DIR / STABILITY_MAP_CSV
     if not p.exists():
-        raise FileNotFoundError(f"no stability map at {p}; run `python -m experiments.fig4_stability_map`")
+        raise FileNotFoundError(
+            f"no stability map at {p}; run `python -m gfb_experiments.fig4_stability_map`"
+        )
     rows = list(csv.DictReader(p.open()))
 
     def f(x):
@@ -468,7 +470,7 @@ def load_hysteresis_map(path: str | os.PathLike | None = None) -> HysteresisMap:
     """Read ``results/hysteresis_map/hysteresis_map.csv`` (or ``path``) into arrays (NaN where empty)."""
     p = Path(path) if path is not None else RESULTS_DIR / HYSTERESIS_MAP_CSV
     if not p.exists():
-        raise FileNotFoundError(f"no hysteresis map at {p}; run `python -m experiments.hysteresis_map`")
+        raise FileNotFoundError(f"no hysteresis map at {p}; run `python -m gfb_experiments.hysteresis_map`")
     rows = list(csv.DictReader(p.open()))
     if not rows:
         raise ValueError(f"hysteresis map {p} is empty")

@@ -29,9 +29,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 
-from gfb_experiments.convergence_study import benchmark_case  # noqa: E402
 from gfb_env import jsonio  # noqa: E402
 from gfb_env.integrator import TrapezoidalIntegrator  # noqa: E402
+from gfb_experiments.convergence_study import benchmark_case  # noqa: E402
 
 LAMBDA, DAMPING, TAU_END, WINDOW = 0.6, 1.0, 3000.0, 500.0
 

@@ -12,9 +12,8 @@ configuration (:class:`ControlSpec`: action mapping, motor limit, control interv
 target) and the nominal map (:class:`~gfb_agents.nominal_map.NominalMap`); never the drawn parameters nor
 the simulator state.
 
-Observation indices (``gfb_env.envs`` docstrings): 0, 1 journal position; 2, 3 velocity; 4, 5 orbit
-extent of xi and eta over the last control step; 6 speed / ``speed_scale_rpm``; 7 damping on the action
-scale; 8... midplane pressures.
+The observation and action units have one owner, :mod:`gfb_env.envs.units` (``env.observation_layout``
+and ``env.actions``); the agents decode observations and encode actions only through it.
 
 Agents (:func:`make_scripted_agents` builds the standard set):
 
@@ -40,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from gfb_agents.nominal_map import NominalMap
-from gfb_env.envs.base import OBS_ETA_EXTENT, OBS_SPEED, OBS_XI_EXTENT
+from gfb_env.envs.units import ActionMap, ObservationLayout
 
 __all__ = [
     "Policy",
@@ -51,9 +50,6 @@ __all__ = [
     "DampingSearchAgent",
     "make_scripted_agents",
 ]
-
-# the observation layout is the environment's (one owner)
-OBS_EXTENT = (OBS_XI_EXTENT, OBS_ETA_EXTENT)
 
 
 class Policy:
@@ -86,8 +82,8 @@ class ControlSpec:
     """The env's documented configuration that a scripted agent may use.
 
     Attributes:
-        damping_range: ``(D_min, D_max)`` of the log-scaled damping action.
-        speed_scale_rpm: observation scale of the speed (obs[6] = rpm / speed_scale_rpm).
+        actions: the env's action map (log-scaled damping, motor limit).
+        observations: the env's observation layout (indices, scales, decoders).
         rpm_per_step: nominal speed change of one control step at action[0] = 1 (motor limit times the
             control step of the *nominal* bearing; for a randomised bearing the agents re-estimate it).
         target_rpm: the nominal task's target speed (``target_fraction * lambda_best`` of the nominal
@@ -95,8 +91,8 @@ class ControlSpec:
         stable_amplitude: whirl amplitude (units of C) that counts as stable.
     """
 
-    damping_range: tuple[float, float]
-    speed_scale_rpm: float
+    actions: ActionMap
+    observations: ObservationLayout
     rpm_per_step: float
     target_rpm: float
     stable_amplitude: float
@@ -105,21 +101,22 @@ class ControlSpec:
     def from_env(cls, env, nmap: NominalMap | None = None) -> ControlSpec:
         u = getattr(env, "unwrapped", env)
         nmap = nmap or NominalMap.from_env(u)
-        b = u.nominal_bearing
-        seconds = b.seconds(u.control_interval)
         frac = float(getattr(u, "target_fraction", 0.95))
         return cls(
-            damping_range=tuple(float(x) for x in u.damping_range),
-            speed_scale_rpm=float(u.speed_scale_rpm),
-            rpm_per_step=float(u.max_acceleration_rpm_per_s * seconds),
+            actions=u.actions,
+            observations=u.observation_layout,
+            rpm_per_step=u.actions.rpm_per_step(u.nominal_bearing, u.control_interval),
             target_rpm=float(nmap.rpm(frac * nmap.lambda_best)),
             stable_amplitude=float(u.stable_amplitude),
         )
 
+    @property
+    def damping_range(self) -> tuple[float, float]:
+        return self.actions.damping_range
+
     def damping_action(self, d: float) -> float:
-        """Action[1] for damping ``d`` (inverse of the env's log mapping, clipped)."""
-        dmin, dmax = self.damping_range
-        return float(np.clip(2.0 * math.log(d / dmin) / math.log(dmax / dmin) - 1.0, -1.0, 1.0))
+        """Action[1] for damping ``d`` (the env's log mapping, clipped)."""
+        return self.actions.action_from_damping(d)
 
 
 class ScriptedPolicy(Policy):
@@ -156,7 +153,7 @@ class ScriptedPolicy(Policy):
             if starts[i]:
                 self._mem[i] = self._new_memory()
             m = self._mem[i]
-            rpm = float(obs2[i, OBS_SPEED]) * self.spec.speed_scale_rpm
+            rpm = self.spec.observations.speed_rpm(obs2[i])
             self._update_rate(m, rpm)
             a = np.clip(np.asarray(self._act(obs2[i], rpm, m), dtype=np.float64), -1.0, 1.0)
             m["prev_rpm"], m["prev_a0"], m["k"] = rpm, float(a[0]), m["k"] + 1
@@ -228,19 +225,15 @@ class MapInformedAgent(ScriptedPolicy):
         return [self.track(m, rpm, self.setpoint_rpm), self.spec.damping_action(self.damping)]
 
 
-def _extent(obs: np.ndarray) -> float:
-    return float(max(obs[OBS_EXTENT[0]], obs[OBS_EXTENT[1]]))
-
-
-def whirl_seen(obs: np.ndarray, m: dict, threshold: float, big: float = 0.06, persist: int = 3) -> bool:
-    """Whirl detector on the orbit envelope (obs 4, 5).
+def whirl_seen(envelope: float, m: dict, threshold: float, big: float = 0.06, persist: int = 3) -> bool:
+    """Whirl detector on the orbit envelope (:meth:`ObservationLayout.envelope`, units of C).
 
     A disturbance kick makes the envelope of one control step jump to ~0.01-0.03 C, after which it decays
     (slowly near ``Lambda_c``); a whirl persists and grows.  So: envelope above ``threshold`` and not
     decaying (at least 95 % of the previous step's) in ``persist`` consecutive control steps, or above
     ``big`` once.  (While ramping, the drift of the equilibrium alone gives ~0.002-0.007 C.)  Keeps its
     counters in ``m``."""
-    e = _extent(obs)
+    e = envelope
     prev = m.get("ext_prev", 0.0)
     m["ext_prev"] = e
     m["ext_count"] = m.get("ext_count", 0) + 1 if (e > threshold and e >= 0.95 * prev) else 0
@@ -297,7 +290,7 @@ class WhirlGuardAgent(ScriptedPolicy):
         return m
 
     def _act(self, obs, rpm, m):
-        whirl = whirl_seen(obs, m, self.threshold)
+        whirl = whirl_seen(self.spec.observations.envelope(obs), m, self.threshold)
         if whirl:
             if m["mode"] != "recover":
                 m["whirl_rpm"] = rpm if m["whirl_rpm"] is None else min(m["whirl_rpm"], rpm)
@@ -360,7 +353,7 @@ class DampingSearchAgent(ScriptedPolicy):
         m["setpoint"] = (1.0 - self.margin) * onsets[j]
 
     def _act(self, obs, rpm, m):
-        whirl = whirl_seen(obs, m, self.threshold)
+        whirl = whirl_seen(self.spec.observations.envelope(obs), m, self.threshold)
         if m["mode"] == "probe":
             d = self.candidates[m["i"]]
             if whirl or rpm >= self.max_probe_rpm:

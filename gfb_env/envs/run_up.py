@@ -4,6 +4,7 @@ right foil damping."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
@@ -11,11 +12,13 @@ import numpy as np
 from gfb_env.envs._data import load_task_constants
 from gfb_env.envs._stability import task_constants
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, GFBEnv, StepOutcome, viscoelastic_model
+from gfb_env.envs.config import check_in
+from gfb_env.envs.rewards import RunUpReward
 from gfb_env.integrator import find_equilibrium
 from gfb_env.model import Grid
 from gfb_env.params import BearingParameters
 
-__all__ = ["RunUpEnv", "nominal_constants"]
+__all__ = ["RunUpEnv", "RunUpTarget", "nominal_constants"]
 
 
 def nominal_constants(grid: Grid, bearing: BearingParameters) -> dict:
@@ -38,6 +41,14 @@ def nominal_constants(grid: Grid, bearing: BearingParameters) -> dict:
 
 
 _COMPUTED: dict = {}
+
+
+@dataclass(frozen=True)
+class RunUpTarget:
+    """The task's record of a run-up episode: where it starts and where it must go (Lambda)."""
+
+    start_bearing_number: float
+    target_bearing_number: float
 
 
 class RunUpEnv(GFBEnv):
@@ -147,32 +158,23 @@ class RunUpEnv(GFBEnv):
         **kwargs,
     ):
         super().__init__(grid=grid, **kwargs)
-        if not (math.isfinite(target_fraction) and 0 < target_fraction <= 1.5):
-            raise ValueError(f"target_fraction must lie in (0, 1.5], got {target_fraction!r}")
-        if not (math.isfinite(target_tolerance) and 0 < target_tolerance < 0.5):
-            raise ValueError(f"target_tolerance must lie in (0, 0.5), got {target_tolerance!r}")
+        self.target_fraction = check_in("target_fraction", target_fraction, 0.0, 1.5, lo_open=True)
+        self.target_tolerance = check_in(
+            "target_tolerance", target_tolerance, 0.0, 0.5, lo_open=True, hi_open=True
+        )
         lo, hi = self.speed_range_rpm
-        if not (math.isfinite(start_speed_rpm) and lo <= start_speed_rpm <= hi):
+        if not (
+            isinstance(start_speed_rpm, (int, float))
+            and math.isfinite(start_speed_rpm)
+            and lo <= start_speed_rpm <= hi
+        ):
             raise ValueError(
                 f"start_speed_rpm must lie in speed_range_rpm {self.speed_range_rpm}, got {start_speed_rpm!r}"
             )
-        for name, v in (
-            ("progress_weight", progress_weight),
-            ("time_penalty", time_penalty),
-            ("whirl_penalty", whirl_penalty),
-            ("success_bonus", success_bonus),
-            ("touchdown_penalty", touchdown_penalty),
-        ):
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be finite and non-negative, got {v!r}")
-        self.target_fraction = float(target_fraction)
         self.start_speed_rpm = float(start_speed_rpm)
-        self.target_tolerance = float(target_tolerance)
-        self.progress_weight = float(progress_weight)
-        self.time_penalty = float(time_penalty)
-        self.whirl_penalty = float(whirl_penalty)
-        self.success_bonus = float(success_bonus)
-        self.touchdown_penalty = float(touchdown_penalty)
+        self.reward = RunUpReward(
+            progress_weight, time_penalty, whirl_penalty, success_bonus, touchdown_penalty
+        )
         self.constants = nominal_constants(self.grid, self.nominal_bearing)
         self._nominal_model = viscoelastic_model(self.grid, self.nominal_bearing)
         b = self.nominal_bearing
@@ -183,7 +185,7 @@ class RunUpEnv(GFBEnv):
         self._start_equilibrium = find_equilibrium(self._nominal_model, self.start_bearing_number)
 
     # ------------------------------------------------------------------------------------------
-    def _setup_episode(self, options: dict | None) -> EpisodeSetup:
+    def _setup_episode(self, options) -> EpisodeSetup:
         model = self._nominal_model
         L = model.layout
         dmin, dmax = self.damping_range
@@ -192,50 +194,41 @@ class RunUpEnv(GFBEnv):
         ang = self.np_random.uniform(0, 2 * math.pi)
         s = self._start_equilibrium
         s = L.with_rotor(s, *L.rotor(s)[:2], v * math.cos(ang), v * math.sin(ang))
+        target = RunUpTarget(self.start_bearing_number, self.target_bearing_number)
         return EpisodeSetup(
             model,
             s,
-            self.start_bearing_number,
+            target.start_bearing_number,
             dw,
             self.nominal_bearing,
-            self._target_info(self.nominal_bearing, self.start_bearing_number, self.target_bearing_number),
+            self._target_info(self.nominal_bearing, target),
+            target,
         )
 
-    def _target_info(self, b: BearingParameters, lam0: float, lam_t: float) -> dict:
-        self._lam0, self._lam_t = lam0, lam_t
+    @staticmethod
+    def _target_info(b: BearingParameters, target: RunUpTarget) -> dict:
         return {
-            "target_bearing_number": lam_t,
-            "target_speed_rpm": b.speed_rpm_at(lam_t),
-            "start_bearing_number": lam0,
+            "target_bearing_number": target.target_bearing_number,
+            "target_speed_rpm": b.speed_rpm_at(target.target_bearing_number),
+            "start_bearing_number": target.start_bearing_number,
         }
 
-    def _potential(self, lam: float) -> float:
-        return -abs(lam - self._lam_t) / (self._lam_t - self._lam0)
-
     def _is_at_target(self, out: StepOutcome) -> bool:
-        return abs(out.bearing_number - self._lam_t) <= self.target_tolerance * self._lam_t
+        lam_t = self.episode.task.target_bearing_number
+        return abs(out.bearing_number - lam_t) <= self.target_tolerance * lam_t
 
-    def _task_reward(self, out: StepOutcome, success: bool) -> float:
-        r = self.progress_weight * (
-            self._potential(out.bearing_number) - self._potential(out.bearing_number_start)
-        )
-        r -= self.time_penalty + self.whirl_penalty * min(out.whirl_amplitude, 1.5)
-        if success:
-            r += self.success_bonus
-        if out.touchdown or out.solver_failure:
-            r -= self.touchdown_penalty
-        return r
+    def _reward_terms(self, out: StepOutcome, success: bool) -> dict[str, float]:
+        task = self.episode.task
+        return self.reward.terms(out, success, task.start_bearing_number, task.target_bearing_number)
 
-    def _task_state(self) -> dict:
-        return {"lam0": self._lam0, "lam_t": self._lam_t}
-
-    def _set_task_state(self, state: dict) -> None:
-        self._lam0, self._lam_t = state["lam0"], state["lam_t"]
+    def _optimum_damping(self) -> float:
+        """The damping of the best stable speed of the episode's bearing (known to the simple expert)."""
+        return self.constants["d_opt"]
 
     def scripted_action(self, ramp: float = 1.0) -> np.ndarray:
         """A simple expert: ramp at ``ramp`` of the motor limit toward the target with the optimum
         damping of the stability map (used by the benchmark and the tests)."""
         lam = self._integ.bearing_number
         step = self.max_rate() * self.control_interval
-        a0 = float(np.clip((self._lam_t - lam) / step, -ramp, ramp))
-        return np.array([a0, self.action_from_damping(self.constants["d_opt"])], dtype=np.float32)
+        a0 = float(np.clip((self.episode.task.target_bearing_number - lam) / step, -ramp, ramp))
+        return np.array([a0, self.action_from_damping(self._optimum_damping())], dtype=np.float32)

@@ -4,18 +4,30 @@ load) and disturbance kicks; the target is relative to the best stable speed of 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
 from gfb_env.envs._data import NOMINAL_BEARING, load_task_constants
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, viscoelastic_model
-from gfb_env.envs.run_up import RunUpEnv
+from gfb_env.envs.config import check_bool, check_in
+from gfb_env.envs.run_up import RunUpEnv, RunUpTarget
 from gfb_env.integrator import find_equilibrium
 from gfb_env.model import Grid
 from gfb_env.params import BearingParameters
 
-__all__ = ["RunUpRandomizedEnv", "BestStableSpeedTable"]
+__all__ = ["RunUpRandomizedEnv", "BestStableSpeedTable", "RandomizedRunUpTarget"]
+
+
+@dataclass(frozen=True)
+class RandomizedRunUpTarget(RunUpTarget):
+    """A run-up target on a drawn bearing: the draw (C in m, f_K, F_L in N) and its optimum damping."""
+
+    clearance_m: float
+    stiffness_factor: float
+    load_n: float
+    optimum_damping: float
 
 
 class BestStableSpeedTable:
@@ -104,6 +116,8 @@ class RunUpRandomizedEnv(RunUpEnv):
     reward weights, ``grid``, ``disturbance_probability=0.1``, ...).  The ranges must lie inside the
     table's.  ``reset(options={"clearance_m": ..., "stiffness_factor": ..., "load_n": ...})`` fixes a draw.
 
+    ``reset(options=...)`` accepts exactly these keys, each inside its range (``ValueError`` otherwise).
+
     ## Version History
 
     * v0: initial version.
@@ -119,13 +133,13 @@ class RunUpRandomizedEnv(RunUpEnv):
         grid: str | Grid = DEFAULT_GRID,
         **kwargs,
     ):
+        self.observe_parameters = check_bool("observe_parameters", observe_parameters)
         table = load_task_constants().get("randomized")
         if table is None:
             raise RuntimeError(
                 "data/task_constants.json has no randomized table; run experiments/env_task_constants.py"
             )
         self.table = BestStableSpeedTable(table)
-        self.observe_parameters = bool(observe_parameters)
         ranges = {}
         for name, r, (tlo, thi) in (
             ("clearance_range_m", clearance_range_m, self.table.bounds[0]),
@@ -149,8 +163,6 @@ class RunUpRandomizedEnv(RunUpEnv):
             start_speed_rpm = round(0.85 * self.lowest_critical_speed_rpm(nominal), -2)
         kwargs.setdefault("max_acceleration_rpm_per_s", 30_000.0)
         super().__init__(start_speed_rpm=start_speed_rpm, grid=grid, **kwargs)
-        self._drawn = None
-        self._models: dict = {}
 
     def lowest_critical_speed_rpm(self, nominal: BearingParameters | None = None) -> float:
         """Lowest speed (rpm) at which a bearing of the ranges loses stability with the least damping
@@ -172,23 +184,30 @@ class RunUpRandomizedEnv(RunUpEnv):
     def _extra_observation(self):
         if not self.observe_parameters:
             return None
-        c, fk, fl = self._drawn
-        nb = self.nominal_bearing
-        return np.array([c / nb.clearance_m, fk, fl / nb.external_load_per_bearing_n])
+        task, nb = self.episode.task, self.nominal_bearing
+        return np.array(
+            [
+                task.clearance_m / nb.clearance_m,
+                task.stiffness_factor,
+                task.load_n / nb.external_load_per_bearing_n,
+            ]
+        )
 
-    def _setup_episode(self, options: dict | None) -> EpisodeSetup:
+    #: ``reset(options=...)`` fixes a draw: each key inside the table's range
+    reset_options = ("clearance_m", "stiffness_factor", "load_n")
+
+    def _setup_episode(self, options) -> EpisodeSetup:
         rng = self.np_random
         c = float(rng.uniform(*self.clearance_range_m))
         fk = float(rng.uniform(*self.stiffness_factor_range))
         fl = float(rng.uniform(*self.load_range_n))
-        if options:
-            c = float(options.get("clearance_m", c))
-            fk = float(options.get("stiffness_factor", fk))
-            fl = float(options.get("load_n", fl))
+        bounds = dict(zip(self.reset_options, self.table.bounds, strict=True))
+        fixed = {k: check_in(f"reset option {k!r}", v, *bounds[k]) for k, v in options.items()}
+        c = fixed.get("clearance_m", c)
+        fk = fixed.get("stiffness_factor", fk)
+        fl = fixed.get("load_n", fl)
         b = self.nominal_bearing.replace(clearance_m=c, external_load_per_bearing_n=fl)
-        key = (c, fk, fl)
         model = viscoelastic_model(self.grid, b, foil_stiffness=fk * b.foil_stiffness)
-        self._drawn = key
         best = self.table(c, fk, fl)
         lam0 = b.bearing_number_at(self.start_speed_rpm)
         # the target never exceeds 98 % of the top speed (a very stiff, heavily loaded draw)
@@ -200,7 +219,8 @@ class RunUpRandomizedEnv(RunUpEnv):
         v = 1e-3 * rng.random()
         ang = rng.uniform(0, 2 * math.pi)
         s = L.with_rotor(s, *L.rotor(s)[:2], v * math.cos(ang), v * math.sin(ang))
-        info = self._target_info(b, lam0, lam_t)
+        target = RandomizedRunUpTarget(lam0, lam_t, c, fk, fl, best["d_opt"])
+        info = self._target_info(b, target)
         info.update(
             {
                 "clearance_um": c * 1e6,
@@ -212,18 +232,8 @@ class RunUpRandomizedEnv(RunUpEnv):
                 "optimum_damping": best["d_opt"],
             }
         )
-        self._d_opt = best["d_opt"]
-        return EpisodeSetup(model, s, lam0, dw, b, info)
+        return EpisodeSetup(model, s, lam0, dw, b, info, target)
 
-    def _task_state(self) -> dict:
-        return {**super()._task_state(), "draw": self._drawn, "d_opt": self._d_opt}
-
-    def _set_task_state(self, state: dict) -> None:
-        super()._set_task_state(state)
-        self._drawn, self._d_opt = state["draw"], state["d_opt"]
-
-    def scripted_action(self, ramp: float = 1.0) -> np.ndarray:
-        """Oracle expert (knows the drawn bearing): ramp to the target with its optimum damping."""
-        a = super().scripted_action(ramp)
-        a[1] = self.action_from_damping(self._d_opt)
-        return a
+    def _optimum_damping(self) -> float:
+        """Oracle expert (knows the drawn bearing): its optimum damping."""
+        return self.episode.task.optimum_damping

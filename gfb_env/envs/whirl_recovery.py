@@ -8,8 +8,8 @@ import math
 import numpy as np
 
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, GFBEnv, StepOutcome, viscoelastic_model
+from gfb_env.envs.rewards import WhirlRecoveryReward
 from gfb_env.envs.run_up import nominal_constants
-from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import Grid
 
 __all__ = ["WhirlRecoveryEnv"]
@@ -90,20 +90,9 @@ class WhirlRecoveryEnv(GFBEnv):
         **kwargs,
     ):
         super().__init__(grid=grid, **kwargs)
-        for name, v in (
-            ("time_penalty", time_penalty),
-            ("whirl_penalty", whirl_penalty),
-            ("speed_loss_weight", speed_loss_weight),
-            ("success_bonus", success_bonus),
-            ("touchdown_penalty", touchdown_penalty),
-        ):
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be finite and non-negative, got {v!r}")
-        self.time_penalty = float(time_penalty)
-        self.whirl_penalty = float(whirl_penalty)
-        self.speed_loss_weight = float(speed_loss_weight)
-        self.success_bonus = float(success_bonus)
-        self.touchdown_penalty = float(touchdown_penalty)
+        self.reward = WhirlRecoveryReward(
+            time_penalty, whirl_penalty, speed_loss_weight, success_bonus, touchdown_penalty
+        )
         self.constants = nominal_constants(self.grid, self.nominal_bearing)
         w = self.constants["whirl"]
         self._model_nominal = viscoelastic_model(self.grid, self.nominal_bearing)
@@ -119,17 +108,10 @@ class WhirlRecoveryEnv(GFBEnv):
                 f"damping_range {self.damping_range} must contain the whirl damping {self.whirl_damping:.3g}"
             )
 
-    def _setup_episode(self, options: dict | None) -> EpisodeSetup:
+    def _setup_episode(self, options) -> EpisodeSetup:
         model = self._model_nominal
         phase = float(self.np_random.uniform(0.0, self.whirl_period))
-        integ = TrapezoidalIntegrator(
-            model,
-            self._whirl_state,
-            self.whirl_bearing_number,
-            self.whirl_damping,
-            touchdown_film_thickness=self.touchdown_film_thickness,
-            **self.integrator_options,
-        )
+        integ = self.new_integrator(model, self._whirl_state, self.whirl_bearing_number, self.whirl_damping)
         integ.advance(phase)
         b = self.nominal_bearing
         info = {
@@ -140,17 +122,11 @@ class WhirlRecoveryEnv(GFBEnv):
         }
         return EpisodeSetup(model, integ.state, self.whirl_bearing_number, self.whirl_damping, b, info)
 
-    def _task_reward(self, out: StepOutcome, success: bool) -> float:
-        lam_w = self.whirl_bearing_number
-        r = -self.time_penalty - self.whirl_penalty * min(out.whirl_amplitude, 1.5)
-        r -= self.speed_loss_weight * max(0.0, lam_w - out.bearing_number) / lam_w
-        if success:
-            r += self.success_bonus * out.bearing_number / lam_w
-        if out.touchdown or out.solver_failure:
-            r -= self.touchdown_penalty
-        return r
+    def _reward_terms(self, out: StepOutcome, success: bool) -> dict[str, float]:
+        return self.reward.terms(out, success, self.whirl_bearing_number)
 
     def scripted_action(self) -> np.ndarray:
         """A simple expert: optimum damping; slow down while whirling, hold speed once it has calmed."""
-        a0 = -1.0 if self._ep["whirl_amplitude"] > self.stable_amplitude or self._ep["step"] == 0 else 0.0
+        ep = self.episode
+        a0 = -1.0 if ep.whirl_amplitude > self.stable_amplitude or ep.step == 0 else 0.0
         return np.array([a0, self.action_from_damping(self.constants["d_opt"])], dtype=np.float32)

@@ -1,0 +1,186 @@
+"""The environments' configuration as one frozen, validated object (the :class:`BearingParameters` style).
+
+Every argument that ``gym.make("gfb_env/...", **kwargs)`` passes to the common machinery lands in
+:class:`EnvConfig`; a bad value is refused at construction with a ``ValueError`` naming the argument.
+Units are in the names (rpm, rpm/s) or nondimensional as in the paper (tau = t / T, lengths / C).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from gfb_env.envs._data import NOMINAL_BEARING
+from gfb_env.integrator_options import IntegratorOptions
+from gfb_env.model import Grid
+from gfb_env.params import BearingParameters
+
+__all__ = ["EnvConfig", "DEFAULT_GRID", "CONTROL_INTERVAL_RANGE"]
+
+#: Default training grid, chosen by the measured accuracy/speed trade-off in ``docs/envs.md``
+#: (``experiments/env_grid_tradeoff.py``): Lambda_c within 1 % of the paper grid 79 x 7.
+DEFAULT_GRID = "31x7"
+
+#: Allowed control step in tau.  Below 1 tau (0.16 ms for the nominal bearing) a step spans under a
+#: twentieth of a whirl period and the envelope says nothing; above 1000 tau (0.16 s, ~40 whirl
+#: periods) one step costs up to ~30 ms in a whirl and a controller cannot react to a growing orbit.
+CONTROL_INTERVAL_RANGE = (1.0, 1000.0)
+
+
+def _is_number(v: Any) -> bool:
+    return not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
+
+
+def check_positive(name: str, v: Any) -> float:
+    if not (_is_number(v) and math.isfinite(v) and v > 0):
+        raise ValueError(f"{name} must be a finite positive number, got {v!r}")
+    return float(v)
+
+
+def check_nonnegative(name: str, v: Any) -> float:
+    if not (_is_number(v) and math.isfinite(v) and v >= 0):
+        raise ValueError(f"{name} must be a finite non-negative number, got {v!r}")
+    return float(v)
+
+
+def check_in(
+    name: str, v: Any, lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = False
+) -> float:
+    """``v`` as a float inside ``[lo, hi]`` (or the open ends asked for), else a ValueError naming it."""
+    ok = _is_number(v) and math.isfinite(v)
+    if ok:
+        ok = (v > lo if lo_open else v >= lo) and (v < hi if hi_open else v <= hi)
+    if not ok:
+        left, right = "(" if lo_open else "[", ")" if hi_open else "]"
+        raise ValueError(f"{name} must lie in {left}{lo:g}, {hi:g}{right}, got {v!r}")
+    return float(v)
+
+
+def check_range(name: str, r: Any) -> tuple[float, float]:
+    """A pair ``(low, high)`` of finite numbers with ``low < high``."""
+    try:
+        lo, hi = r
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a pair (low, high), got {r!r}") from None
+    if not (_is_number(lo) and _is_number(hi) and math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ValueError(f"{name} must be a finite pair with low < high, got {r!r}")
+    return float(lo), float(hi)
+
+
+def check_bool(name: str, v: Any) -> bool:
+    if not isinstance(v, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {v!r}")
+    return bool(v)
+
+
+def check_int(name: str, v: Any, lo: int, hi: int) -> int:
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
+        raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
+    return int(v)
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Configuration of the common machinery of the GFB tasks (:class:`~gfb_env.envs.base.GFBEnv`).
+
+    Attributes:
+        grid: finite-difference grid (``"N_phi x N_Z"`` or a :class:`~gfb_env.model.Grid`).
+        control_interval: tau per control step, in :data:`CONTROL_INTERVAL_RANGE` (default 60: ~3
+            whirl periods at Lambda = 0.7, 9.5 ms for the nominal bearing).
+        max_acceleration_rpm_per_s: motor acceleration limit; ``a_speed = +-1`` ramps at it (default
+            30 000 rpm/s, a small high-speed motor).
+        speed_range_rpm: allowed rotor speeds; the commanded speed is clipped into it.
+        damping_range: ``(D_min, D_max)`` of the foil damping D_W; ``a_damping`` maps log-linearly.
+        n_pressure_probes: midplane pressure probes equally spaced in phi from phi = 0.
+        observation_noise: standard deviation of additive Gaussian noise on the measured observations
+            (rotor, envelope, pressures; in their observation units), 0 = none.
+        touchdown_film_thickness: min film thickness H (units of C) that counts as touchdown; the one
+            threshold used by the integrator's touchdown event and the episode end.
+        stable_amplitude: whirl amplitude (units of C) below which a control step counts as stable.
+        hold_steps: consecutive stable control steps at the target that make a success.
+        disturbance_probability: chance per control step of a random disturbance kick.
+        disturbance_magnitude: journal velocity impulse of a kick (units of C/T, random direction).
+        speed_scale_rpm: observation scale of the speed (``obs = rpm / speed_scale_rpm``).
+        nominal_bearing: the task's nominal bearing (observation scales; the plant unless randomised).
+        integrator: settings of the trapezoidal integrator (a dict of its keyword arguments or an
+            :class:`~gfb_env.integrator_options.IntegratorOptions`).
+    """
+
+    grid: Grid = field(default_factory=lambda: Grid.parse(DEFAULT_GRID))
+    control_interval: float = 60.0
+    max_acceleration_rpm_per_s: float = 30_000.0
+    speed_range_rpm: tuple[float, float] = (12_000.0, 60_000.0)
+    damping_range: tuple[float, float] = (0.1, 10.0)
+    n_pressure_probes: int = 8
+    observation_noise: float = 0.0
+    touchdown_film_thickness: float = 0.02
+    stable_amplitude: float = 0.05
+    hold_steps: int = 10
+    disturbance_probability: float = 0.1
+    disturbance_magnitude: float = 0.005
+    speed_scale_rpm: float = 60_000.0
+    nominal_bearing: BearingParameters = NOMINAL_BEARING
+    integrator: IntegratorOptions = field(default_factory=IntegratorOptions)
+
+    def __post_init__(self) -> None:
+        def put(name: str, value: Any) -> None:
+            object.__setattr__(self, name, value)
+
+        g = self.grid
+        if isinstance(g, str):
+            put("grid", Grid.parse(g))
+        elif not isinstance(g, Grid):
+            raise ValueError(f"grid must be a string like '31x7' or a Grid, got {g!r}")
+        put("control_interval", check_in("control_interval", self.control_interval, *CONTROL_INTERVAL_RANGE))
+        put(
+            "max_acceleration_rpm_per_s",
+            check_positive("max_acceleration_rpm_per_s", self.max_acceleration_rpm_per_s),
+        )
+        lo, hi = check_range("speed_range_rpm", self.speed_range_rpm)
+        if lo <= 0:
+            raise ValueError(f"speed_range_rpm must be positive, got {self.speed_range_rpm!r}")
+        put("speed_range_rpm", (lo, hi))
+        dmin, dmax = check_range("damping_range", self.damping_range)
+        if dmin <= 0:
+            raise ValueError(f"damping_range must be positive, got {self.damping_range!r}")
+        put("damping_range", (dmin, dmax))
+        put(
+            "n_pressure_probes",
+            check_int("n_pressure_probes", self.n_pressure_probes, 1, self.grid.n_columns),
+        )
+        put("observation_noise", check_nonnegative("observation_noise", self.observation_noise))
+        put(
+            "touchdown_film_thickness",
+            check_in("touchdown_film_thickness", self.touchdown_film_thickness, 0.0, 1.0, hi_open=True),
+        )
+        put("stable_amplitude", check_positive("stable_amplitude", self.stable_amplitude))
+        put("hold_steps", check_int("hold_steps", self.hold_steps, 1, 10_000))
+        put(
+            "disturbance_probability",
+            check_in("disturbance_probability", self.disturbance_probability, 0.0, 1.0),
+        )
+        put("disturbance_magnitude", check_nonnegative("disturbance_magnitude", self.disturbance_magnitude))
+        put("speed_scale_rpm", check_positive("speed_scale_rpm", self.speed_scale_rpm))
+        if self.nominal_bearing is None:
+            put("nominal_bearing", NOMINAL_BEARING)
+        elif not isinstance(self.nominal_bearing, BearingParameters):
+            kind = type(self.nominal_bearing).__name__
+            raise ValueError(f"nominal_bearing must be a BearingParameters or None, got {kind}")
+        put("integrator", IntegratorOptions.from_mapping(self.integrator))
+
+    @classmethod
+    def from_kwargs(cls, kwargs: Mapping[str, Any]) -> EnvConfig:
+        """From ``gym.make`` keyword arguments (``integrator_options`` -> ``integrator``); an unknown
+        keyword is refused with the list of allowed ones."""
+        known = set(cls.__dataclass_fields__) - {"integrator"} | {"integrator_options"}
+        for key in kwargs:
+            if key not in known:
+                raise ValueError(f"unknown environment argument {key!r}; allowed: {sorted(known)}")
+        kw = dict(kwargs)
+        if "integrator_options" in kw:
+            kw["integrator"] = kw.pop("integrator_options")
+        return cls(**kw)

@@ -25,13 +25,13 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_agents.evaluate import EpisodeResult, LearnedPolicy, evaluate, load_learned_policies, summarise
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.scripted import Policy, make_scripted_agents
 from gfb_env import jsonio
+from gfb_env.envs import ENV_IDS
 
-TASKS = ("gfb_env/RunUp-v0", "gfb_env/RunUpRandomized-v0", "gfb_env/WhirlRecovery-v0")
+TASKS = ENV_IDS  # the task list has one owner
 SEED0 = 10_000
 COLUMNS = [
     "task",
@@ -168,7 +168,7 @@ def write_csv(rows: list[dict], path: Path) -> None:
             )
 
 
-def markdown_table(rows: list[dict], episodes: int, skipped: dict[str, str]) -> str:
+def markdown_table(rows: list[dict], episodes: int) -> str:
     """The benchmark as Markdown (one table, grouped by task, best mean return in bold per task)."""
     head = (
         "| task | agent | kind | success | return (mean +- 95% CI) | time to target (s) | final stable "
@@ -193,8 +193,6 @@ def markdown_table(rows: list[dict], episodes: int, skipped: dict[str, str]) -> 
                 f"{_fmt(r['time_to_target_s'], 3)} | {_fmt(r['final_speed_rpm'], 0)} | "
                 f"{_fmt(r['max_whirl_amplitude'], 3)} | {r['touchdowns']}/{r['episodes']} |"
             )
-    for task, why in skipped.items():
-        lines.append(f"\n{task}: not benchmarked ({why}).")
     lines += [
         "",
         "Columns: success = share of episodes ending in `success`; time to target = rotor time until the "
@@ -318,20 +316,9 @@ def main(argv: list[str] | None = None) -> int:
     for t in tasks:
         if t not in gym.registry:
             ap.error(f"unknown task {t!r}; known: {', '.join(TASKS)}")
-    skipped = {}
-    usable = []
-    for t in tasks:
-        try:
-            gym.make(t, **env_kwargs.get(t, {})).close()
-            usable.append(t)
-        except Exception as exc:  # noqa: BLE001 - a task that cannot be built is reported, not fatal
-            skipped[t] = f"{type(exc).__name__}: {exc}"
-            print(f"skipping {t}: {exc}")
-    if not usable:
-        ap.error("no task can be built")
     t0 = time.perf_counter()
     rows, paths = run_benchmark(
-        usable, episodes, set(a.agents.split(",")) if a.agents else None, a.n_jobs, a.policies, env_kwargs
+        tasks, episodes, set(a.agents.split(",")) if a.agents else None, a.n_jobs, a.policies, env_kwargs
     )
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -346,11 +333,11 @@ def main(argv: list[str] | None = None) -> int:
     rows.sort(key=lambda r: order.get(r["task"], 99))
     all_tasks = sorted({r["task"] for r in rows}, key=lambda t: order.get(t, 99))
     write_csv(rows, out / "benchmark_agents.csv")
-    (out / "benchmark_agents.md").write_text(markdown_table(rows, episodes, skipped))
+    (out / "benchmark_agents.md").write_text(markdown_table(rows, episodes))
     (out / "benchmark_agents_paths.json").write_text(
         jsonio.dumps({f"{t}|{n}": v for (t, n), v in paths.items()})
     )
-    env = gym.make(usable[0], **env_kwargs.get(usable[0], {}))
+    env = gym.make(tasks[0], **env_kwargs.get(tasks[0], {}))
     plot_paths(paths, NominalMap.from_env(env), out / "benchmark_agents_paths.png", all_tasks)
     env.close()
     meta = {
@@ -358,7 +345,6 @@ def main(argv: list[str] | None = None) -> int:
         "seeds": [SEED0, SEED0 + episodes - 1],
         "tasks": all_tasks,
         "env_kwargs": env_kwargs,
-        "skipped": skipped,
         "wall_time_s_last_run": round(time.perf_counter() - t0, 1),
     }
     (out / "benchmark_agents.json").write_text(jsonio.dumps(meta, indent=2))

@@ -15,8 +15,8 @@ import argparse
 import time
 
 from gfb_env import jsonio
+from gfb_env.analysis.task_constants import critical_bearing_number_or_bound
 from gfb_env.envs._data import NOMINAL_BEARING
-from gfb_env.envs._stability import critical_bearing_number
 from gfb_env.integrator import TrapezoidalIntegrator, find_equilibrium
 from gfb_env.model import GFBModel, Grid
 
@@ -26,7 +26,7 @@ def measure(grid: str) -> dict:
     L = model.layout
     out = {"grid": grid, "state_size": L.size}
     for d in (1.0, 2.3):
-        out[f"lambda_c_d{d:g}"] = critical_bearing_number(
+        out[f"lambda_c_d{d:g}"] = critical_bearing_number_or_bound(
             model, d, lam_min=0.5, lam_max=1.0, scan_step=0.05, tol=1e-4
         )
     s = find_equilibrium(model, 0.45)

@@ -11,8 +11,7 @@ For the default grid only, the RunUpRandomized-v0 lookup table of ``lambda_best`
 ``lambda_c`` at the damping bounds) over clearance C, stiffness factor f_K (K_W = f_K K_W,WA(C)) and
 external load F_L.
 
-Stability uses the private helper ``gfb_env.envs._stability`` (TEMPORARY, to be replaced by
-``gfb_env.analysis``).  Run::
+Stability uses :mod:`gfb_env.analysis.task_constants`.  Run::
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python experiments/env_task_constants.py
 
@@ -30,13 +29,13 @@ import numpy as np
 
 from gfb_env import jsonio
 from gfb_env.analysis.maps import optimum_from_curve
-from gfb_env.envs._data import NOMINAL_BEARING, TASK_CONSTANTS_PATH
-from gfb_env.envs._stability import (
+from gfb_env.analysis.task_constants import (
     WHIRL_FACTOR,
     critical_bearing_numbers_on_grid,
     developed_whirl_state,
     task_constants,
 )
+from gfb_env.envs._data import NOMINAL_BEARING, TASK_CONSTANTS_PATH
 from gfb_env.model import GFBModel, Grid
 
 D_MIN, D_MAX = 0.1, 10.0

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
+from gfb_env.analysis.task_constants import task_constants
 from gfb_env.envs._data import load_task_constants
-from gfb_env.envs._stability import task_constants
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, GFBEnv, StepOutcome, viscoelastic_model
 from gfb_env.envs.config import check_in
 from gfb_env.envs.rewards import RunUpReward

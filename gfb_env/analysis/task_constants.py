@@ -1,7 +1,8 @@
-"""Stability constants of the tasks, on top of :mod:`gfb_env.analysis`.
+"""Stability constants of the Gymnasium tasks, on top of the rest of :mod:`gfb_env.analysis`.
 
-Used only by the scripts that precompute the task constants (``experiments/env_task_constants.py``)
-and, for a grid that is not tabulated, once in an environment's constructor; never inside ``reset()``.
+Used by the script that precomputes the task constants (``experiments/env_task_constants.py``) and,
+for a grid that is not tabulated, once in an environment's constructor (with a warning); never inside
+``reset()``.
 
 Method (paper Sect. 3.2): ``Lambda_c(D_W)`` by :func:`gfb_env.analysis.critical_bearing_number`
 (eigenvalues of the Jacobian at the static equilibrium, scan + Brent root of the growth rate); its
@@ -14,21 +15,25 @@ import math
 
 import numpy as np
 
-from gfb_env.analysis import NoCriticalPointError, NoStableEquilibriumError, jacobian_eigenvalues
-from gfb_env.analysis import critical_bearing_number as _analysis_critical_bearing_number
 from gfb_env.analysis.maps import optimum_from_curve
+from gfb_env.analysis.stability import (
+    NoCriticalPointError,
+    NoStableEquilibriumError,
+    critical_bearing_number,
+    jacobian_eigenvalues,
+)
 from gfb_env.integrator import find_equilibrium
 from gfb_env.model import GFBModel
 
 __all__ = [
-    "critical_bearing_number",
+    "critical_bearing_number_or_bound",
     "critical_bearing_numbers_on_grid",
     "developed_whirl_state",
     "task_constants",
 ]
 
 
-def critical_bearing_number(
+def critical_bearing_number_or_bound(
     model: GFBModel,
     foil_damping: float,
     lam_min: float = 0.2,
@@ -36,10 +41,11 @@ def critical_bearing_number(
     scan_step: float = 0.05,
     tol: float = 1e-4,
 ) -> float:
-    """``Lambda_c`` in ``[lam_min, lam_max]`` as a float (``lam_min`` if no scanned equilibrium is
-    stable, ``nan`` if stable on the whole range)."""
+    """:func:`~gfb_env.analysis.stability.critical_bearing_number` as a plain float for tables:
+    ``lam_min`` if no scanned equilibrium is stable, ``nan`` if stable on the whole range (where that
+    function raises)."""
     try:
-        cp = _analysis_critical_bearing_number(
+        cp = critical_bearing_number(
             model, foil_damping, bearing_range=(lam_min, lam_max), scan_step=scan_step, xtol=tol
         )
     except NoStableEquilibriumError:

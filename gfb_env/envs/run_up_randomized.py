@@ -9,9 +9,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
-from gfb_env.envs._data import NOMINAL_BEARING, load_task_constants
+from gfb_env.envs._data import load_task_constants
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, viscoelastic_model
-from gfb_env.envs.config import check_bool, check_in
+from gfb_env.envs.config import EnvConfig, check_bool, check_in
 from gfb_env.envs.run_up import RunUpEnv, RunUpTarget
 from gfb_env.integrator import find_equilibrium
 from gfb_env.model import Grid
@@ -159,7 +159,7 @@ class RunUpRandomizedEnv(RunUpEnv):
         self.stiffness_factor_range = ranges["stiffness_factor_range"]
         self.load_range_n = ranges["load_range_n"]
         if start_speed_rpm is None:
-            nominal = kwargs.get("nominal_bearing") or NOMINAL_BEARING
+            nominal = EnvConfig.from_kwargs(kwargs).nominal_bearing  # validated before use
             start_speed_rpm = round(0.85 * self.lowest_critical_speed_rpm(nominal), -2)
         kwargs.setdefault("max_acceleration_rpm_per_s", 30_000.0)
         super().__init__(start_speed_rpm=start_speed_rpm, grid=grid, **kwargs)

@@ -159,7 +159,10 @@ class RunUpRandomizedEnv(RunUpEnv):
         self.stiffness_factor_range = ranges["stiffness_factor_range"]
         self.load_range_n = ranges["load_range_n"]
         if start_speed_rpm is None:
-            nominal = EnvConfig.from_kwargs(kwargs).nominal_bearing  # validated before use
+            # validated before use (render_mode is the base class's own argument)
+            nominal = EnvConfig.from_kwargs(
+                {k: v for k, v in kwargs.items() if k != "render_mode"}
+            ).nominal_bearing
             start_speed_rpm = round(0.85 * self.lowest_critical_speed_rpm(nominal), -2)
         kwargs.setdefault("max_acceleration_rpm_per_s", 30_000.0)
         super().__init__(start_speed_rpm=start_speed_rpm, grid=grid, **kwargs)

@@ -33,6 +33,7 @@ import re
 import shlex
 import sys
 import time
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +43,15 @@ import yaml
 
 from gfb_env import jsonio
 
-__all__ = ["ALGOS", "load_hyperparams", "make_vec_env_for", "train", "main", "plot_learning_curve"]
+__all__ = [
+    "ALGOS",
+    "TrainConfig",
+    "load_hyperparams",
+    "make_vec_env_for",
+    "train",
+    "main",
+    "plot_learning_curve",
+]
 
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
 ALGOS = ("ppo", "sac")
@@ -187,57 +196,110 @@ def _save_vecnormalize_callback():
     return SaveVecNormalizeOnBest
 
 
-def train(
-    algo: str,
-    env_id: str,
-    timesteps: int | None = None,
-    seed: int = 0,
-    n_envs: int | None = None,
-    out: str | Path | None = None,
-    resume: str | Path | None = None,
-    hyperparams: str | Path | None = None,
-    env_kwargs: dict | None = None,
-    eval_freq: int = 5_000,
-    eval_episodes: int = 10,
-    checkpoint_freq: int = 20_000,
-    progress_bar: bool = True,
-    tensorboard: bool = True,
-    command: str | None = None,
-    verbose: int = 0,
-    torch_threads: int = 1,
-) -> Path:
+def _check_count(name: str, v: Any, allow_none: bool = False) -> None:
+    if v is None and allow_none:
+        return
+    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+        raise ValueError(f"{name} must be a positive integer, got {v!r}")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One training run, validated when made (every field is a ``python -m gfb_agents.train`` option).
+
+    Attributes:
+        algo: ``"ppo"`` or ``"sac"``.
+        env_id: a registered ``gfb_env/...`` id.
+        timesteps: total env steps (None: ``n_timesteps`` of the YAML).
+        seed: seeds Python, NumPy, torch; training env ``i`` gets ``seed + i``, evaluation ``seed + 10 000``.
+        n_envs: parallel training envs (None: the YAML's ``n_envs``).
+        out: output directory (None: ``runs/<task>_<algo>_s<seed>``).
+        resume: checkpoint ``.zip`` to continue from (its VecNormalize statistics saved next to it).
+        hyperparams: zoo-style YAML (None: ``hyperparams/<algo>.yml`` of the package).
+        env_kwargs: keyword arguments of ``gymnasium.make``.
+        eval_freq, eval_episodes, checkpoint_freq: evaluation and checkpoint cadence in env steps.
+        progress_bar, tensorboard, verbose: output.
+        torch_threads: torch CPU threads (1: the env is the bottleneck and cores are shared).
+    """
+
+    algo: str
+    env_id: str = "gfb_env/RunUpRandomized-v0"
+    timesteps: int | None = None
+    seed: int = 0
+    n_envs: int | None = None
+    out: Path | None = None
+    resume: Path | None = None
+    hyperparams: Path | None = None
+    env_kwargs: dict = field(default_factory=dict)
+    eval_freq: int = 5_000
+    eval_episodes: int = 10
+    checkpoint_freq: int = 20_000
+    progress_bar: bool = True
+    tensorboard: bool = True
+    verbose: int = 0
+    torch_threads: int = 1
+
+    def __post_init__(self) -> None:
+        algo = str(self.algo).lower()
+        if algo not in ALGOS:
+            raise ValueError(f"algo must be one of {ALGOS}, got {self.algo!r}")
+        object.__setattr__(self, "algo", algo)
+        import gfb_env.envs  # noqa: F401  (registers the ids)
+
+        if self.env_id not in gym.registry:
+            raise ValueError(
+                f"unknown env id {self.env_id!r}; registered gfb_env ids: "
+                f"{sorted(k for k in gym.registry if k.startswith('gfb_env/'))}"
+            )
+        _check_count("timesteps", self.timesteps, allow_none=True)
+        _check_count("n_envs", self.n_envs, allow_none=True)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
+        for name in ("eval_freq", "eval_episodes", "checkpoint_freq", "torch_threads"):
+            _check_count(name, getattr(self, name))
+        for name in ("out", "resume", "hyperparams"):
+            v = getattr(self, name)
+            if v is not None:
+                object.__setattr__(self, name, Path(v))
+        if self.env_kwargs is None:
+            object.__setattr__(self, "env_kwargs", {})
+        elif not isinstance(self.env_kwargs, dict):
+            raise ValueError(f"env_kwargs must be a dict, got {type(self.env_kwargs).__name__}")
+
+    @property
+    def task(self) -> str:
+        """``RunUp`` of ``gfb_env/RunUp-v0``."""
+        return self.env_id.split("/")[-1].split("-v")[0]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(self).items()}
+
+
+def train(config: TrainConfig, command: str | None = None) -> Path:
     """Train and save; returns the output directory (see the module docstring for its contents)."""
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
     from stable_baselines3.common.utils import set_random_seed
     from stable_baselines3.common.vec_env import VecNormalize
 
-    algo = algo.lower()
-    if algo not in ALGOS:
-        raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
-    import gfb_env.envs  # noqa: F401
-
-    if env_id not in gym.registry:
-        raise ValueError(
-            f"unknown env id {env_id!r}; registered gfb_env ids: "
-            f"{sorted(k for k in gym.registry if k.startswith('gfb_env/'))}"
-        )
-    hp = load_hyperparams(algo, env_id, hyperparams)
+    c = config
+    algo, env_id, seed, env_kwargs, task = c.algo, c.env_id, c.seed, c.env_kwargs, c.task
+    hp = load_hyperparams(algo, env_id, c.hyperparams)
     zoo, kwargs = _split_hyperparams(hp)
-    total = int(timesteps if timesteps is not None else zoo.get("n_timesteps", 100_000))
-    n_envs = int(n_envs if n_envs is not None else zoo.get("n_envs", 1))
+    total = int(c.timesteps if c.timesteps is not None else zoo.get("n_timesteps", 100_000))
+    n_envs = int(c.n_envs if c.n_envs is not None else zoo.get("n_envs", 1))
     if total <= 0:
         raise ValueError(f"timesteps must be positive, got {total}")
     if n_envs < 1:
         raise ValueError(f"n_envs must be >= 1, got {n_envs}")
-    task = env_id.split("/")[-1].split("-v")[0]
-    out = Path(out) if out is not None else Path("runs") / f"{task}_{algo}_s{seed}"
+    out = c.out if c.out is not None else Path("runs") / f"{task}_{algo}_s{seed}"
+    resume, tensorboard, verbose = c.resume, c.tensorboard, c.verbose
     out.mkdir(parents=True, exist_ok=True)
     for sub in ("checkpoints", "eval", "monitor"):
         (out / sub).mkdir(exist_ok=True)
 
     import torch
 
-    torch.set_num_threads(torch_threads)
+    torch.set_num_threads(c.torch_threads)
     set_random_seed(seed)
     monitor_dir = out / "monitor"
     if resume is not None:
@@ -252,7 +314,6 @@ def train(
     eval_base = make_vec_env_for(env_id, 1, seed + 10_000, None, env_kwargs)
     norm = zoo["normalize"]
     cls = _algo_class(algo)
-    resume = Path(resume) if resume is not None else None
     if resume is not None:
         if not resume.exists():
             raise FileNotFoundError(f"--resume checkpoint {resume} does not exist")
@@ -297,7 +358,7 @@ def train(
     callbacks = CallbackList(
         [
             CheckpointCallback(
-                save_freq=max(1, checkpoint_freq // per_env),
+                save_freq=max(1, c.checkpoint_freq // per_env),
                 save_path=str(out / "checkpoints"),
                 name_prefix=f"{task}_{algo}",
                 save_vecnormalize=bool(norm),
@@ -306,15 +367,15 @@ def train(
             EvalCallback(
                 eval_env,
                 callback_on_new_best=on_best,
-                n_eval_episodes=eval_episodes,
-                eval_freq=max(1, eval_freq // per_env),
+                n_eval_episodes=c.eval_episodes,
+                eval_freq=max(1, c.eval_freq // per_env),
                 log_path=str(out / "eval"),
                 best_model_save_path=str(out / "eval"),
                 deterministic=True,
                 verbose=verbose,
             ),
         ]
-        + ([_tqdm_progress_callback(remaining)] if progress_bar else [])
+        + ([_tqdm_progress_callback(remaining)] if c.progress_bar else [])
     )
     t0 = time.perf_counter()
     interrupted = False
@@ -338,7 +399,7 @@ def train(
     info = {
         "algo": algo,
         "env_id": env_id,
-        "env_kwargs": env_kwargs or {},
+        "env_kwargs": env_kwargs,
         "seed": seed,
         "n_envs": n_envs,
         "timesteps": int(model.num_timesteps),
@@ -348,6 +409,7 @@ def train(
         "hyperparams": {
             k: (v if isinstance(v, (int, float, str, bool)) or v is None else repr(v)) for k, v in hp.items()
         },
+        "config": c.as_dict(),
         "final_eval": final,
         "interrupted": interrupted,
     }
@@ -477,13 +539,6 @@ def main(argv: list[str] | None = None) -> int:
         help="torch CPU threads (default 1: the env is the bottleneck and cores are shared)",
     )
     a = ap.parse_args(argv)
-    if a.timesteps is not None and a.timesteps <= 0:
-        ap.error(f"--timesteps must be positive, got {a.timesteps}")
-    if a.n_envs is not None and a.n_envs < 1:
-        ap.error(f"--n-envs must be >= 1, got {a.n_envs}")
-    for name in ("eval_freq", "eval_episodes", "checkpoint_freq"):
-        if getattr(a, name) < 1:
-            ap.error(f"--{name.replace('_', '-')} must be >= 1")
     env_kwargs = None
     if a.env_kwargs:
         try:
@@ -496,25 +551,25 @@ def main(argv: list[str] | None = None) -> int:
         shlex.quote(x) for x in (argv if argv is not None else sys.argv[1:])
     )
     try:
-        out = train(
-            a.algo,
-            a.env,
-            a.timesteps,
-            a.seed,
-            a.n_envs,
-            a.out,
-            a.resume,
-            a.hyperparams,
-            env_kwargs,
-            a.eval_freq,
-            a.eval_episodes,
-            a.checkpoint_freq,
-            not a.no_progress_bar,
-            not a.no_tensorboard,
-            cmd,
-            a.verbose,
-            a.torch_threads,
+        config = TrainConfig(
+            algo=a.algo,
+            env_id=a.env,
+            timesteps=a.timesteps,
+            seed=a.seed,
+            n_envs=a.n_envs,
+            out=a.out,
+            resume=a.resume,
+            hyperparams=a.hyperparams,
+            env_kwargs=env_kwargs,
+            eval_freq=a.eval_freq,
+            eval_episodes=a.eval_episodes,
+            checkpoint_freq=a.checkpoint_freq,
+            progress_bar=not a.no_progress_bar,
+            tensorboard=not a.no_tensorboard,
+            verbose=a.verbose,
+            torch_threads=a.torch_threads,
         )
+        out = train(config, cmd)
     except (ValueError, FileNotFoundError) as exc:
         ap.error(str(exc))
     print(f"saved to {out}")

@@ -13,7 +13,7 @@ import pytest
 from gfb_agents.evaluate import LearnedPolicy, run_episode, summarise
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.scripted import ControlSpec, MapInformedAgent, make_scripted_agents
-from gfb_agents.train import load_hyperparams, train
+from gfb_agents.train import TrainConfig, load_hyperparams, train
 from gfb_agents.train import main as train_main
 from gfb_env.envs import ENV_IDS
 
@@ -102,7 +102,7 @@ def _train_quick(tmp_path, algo: str, out_name: str, **overrides):
         tensorboard=False,
     )
     kwargs.update(overrides)
-    return train(algo, env_id, **kwargs)
+    return train(TrainConfig(algo, env_id, **kwargs))
 
 
 @pytest.mark.parametrize("algo", ["ppo", "sac"])
@@ -243,3 +243,22 @@ def test_committed_policies_load_and_act():
         res = run_episode(env, pol, seed=0)
         assert res.steps >= 1 and math.isfinite(res.episode_return)
         env.close()
+
+
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        ({"algo": "dqn"}, "algo"),
+        ({"algo": "ppo", "env_id": "gfb_env/Nope-v0"}, "unknown env id"),
+        ({"algo": "ppo", "timesteps": 0}, "timesteps"),
+        ({"algo": "sac", "n_envs": 1.5}, "n_envs"),
+        ({"algo": "sac", "eval_freq": 0}, "eval_freq"),
+        ({"algo": "sac", "seed": -1}, "seed"),
+        ({"algo": "sac", "env_kwargs": "x"}, "env_kwargs"),
+    ],
+)
+def test_train_config_refuses_bad_fields_by_name(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        TrainConfig(**kwargs)
+    cfg = TrainConfig("PPO", "gfb_env/RunUp-v0", out="runs/x")
+    assert cfg.algo == "ppo" and cfg.task == "RunUp" and cfg.as_dict()["out"] == "runs/x"

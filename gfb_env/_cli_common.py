@@ -12,6 +12,7 @@ from gfb_env.model import GFBModel, Grid, Structure
 from gfb_env.params import BearingParameters
 
 __all__ = [
+    "OneLineParser",
     "add_model_options",
     "add_speed_options",
     "model_from_args",
@@ -22,6 +23,14 @@ __all__ = [
     "grid_type",
     "check_output_dir",
 ]
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An :class:`argparse.ArgumentParser` whose usage errors are one line (``prog: error: ...``) and
+    exit code 2, without the usage block (``--help`` still prints it)."""
+
+    def error(self, message: str) -> None:
+        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 def positive(name: str):

@@ -18,6 +18,7 @@ import numpy as np
 
 from gfb_env import jsonio
 from gfb_env._cli_common import (
+    OneLineParser,
     add_model_options,
     add_speed_options,
     bearing_number_from_args,
@@ -34,9 +35,7 @@ from gfb_env.params import BearingParameters
 __all__ = ["main", "build_parser"]
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, exit code 2
-        self.exit(2, f"{self.prog}: error: {message}\n")
+_Parser = OneLineParser
 
 
 def _print_table(rows: dict) -> None:

@@ -26,7 +26,6 @@ zip and the VecNormalize statistics saved next to it (same step count), keeping 
 
 from __future__ import annotations
 
-import argparse
 import ast
 import json
 import re
@@ -42,6 +41,7 @@ import numpy as np
 import yaml
 
 from gfb_env import jsonio
+from gfb_env._cli_common import OneLineParser, check_output_dir
 
 __all__ = [
     "ALGOS",
@@ -510,7 +510,7 @@ def plot_learning_curve(run_dir: str | Path, path: str | Path, title: str = "") 
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m gfb_agents.train", description=__doc__.splitlines()[0])
+    ap = OneLineParser(prog="python -m gfb_agents.train", description=__doc__.splitlines()[0])
     ap.add_argument("--algo", required=True, choices=ALGOS)
     ap.add_argument("--env", default="gfb_env/RunUpRandomized-v0", help="registered env id")
     ap.add_argument(
@@ -547,6 +547,11 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"--env-kwargs is not valid JSON: {exc}")
         if not isinstance(env_kwargs, dict):
             ap.error("--env-kwargs must be a JSON object")
+    if a.out is not None:
+        try:  # before any training: an unwritable --out fails now, not at the first checkpoint
+            check_output_dir(a.out, "--out")
+        except ValueError as exc:
+            ap.error(str(exc))
     cmd = "python -m gfb_agents.train " + " ".join(
         shlex.quote(x) for x in (argv if argv is not None else sys.argv[1:])
     )

@@ -15,7 +15,6 @@ also kept in ``benchmark_agents_paths.json``).  ``--quick`` plays one episode pe
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import math
@@ -29,6 +28,7 @@ from gfb_agents.evaluate import EpisodeResult, LearnedPolicy, evaluate, load_lea
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.scripted import Policy, make_scripted_agents
 from gfb_env import jsonio
+from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.envs import ENV_IDS
 
 TASKS = ENV_IDS  # the task list has one owner
@@ -276,9 +276,7 @@ def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> N
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(
-        prog="python -m gfb_experiments.benchmark_agents", description=__doc__.splitlines()[0]
-    )
+    ap = OneLineParser(prog="python -m gfb_experiments.benchmark_agents", description=__doc__.splitlines()[0])
     ap.add_argument("--episodes", type=int, default=50, help="seeded episodes per (task, agent) (>= 1)")
     ap.add_argument("--quick", action="store_true", help="one episode per pair (for tests)")
     ap.add_argument("--tasks", default=None, help=f"comma-separated env ids (default: {','.join(TASKS)})")
@@ -312,6 +310,10 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--episodes must be >= 1, got {a.episodes}")
     if not 1 <= a.n_jobs <= 2:
         ap.error(f"--n-jobs must be 1 or 2 (two shared cores), got {a.n_jobs}")
+    try:  # before any episode: an unwritable --out fails now, not after the benchmark
+        check_output_dir(a.out, "--out")
+    except ValueError as exc:
+        ap.error(str(exc))
     tasks = a.tasks.split(",") if a.tasks else list(TASKS)
     for t in tasks:
         if t not in gym.registry:

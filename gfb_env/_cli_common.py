@@ -4,17 +4,33 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
+from collections.abc import Iterable
+from pathlib import Path
 
 from gfb_env.model import GFBModel, Grid, Structure
 from gfb_env.params import BearingParameters
 
 __all__ = [
+    "OneLineParser",
     "add_model_options",
     "add_speed_options",
     "model_from_args",
     "bearing_number_from_args",
     "positive",
+    "finite",
+    "in_range",
+    "grid_type",
+    "check_output_dir",
 ]
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An :class:`argparse.ArgumentParser` whose usage errors are one line (``prog: error: ...``) and
+    exit code 2, without the usage block (``--help`` still prints it)."""
+
+    def error(self, message: str) -> None:
+        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 def positive(name: str):
@@ -32,11 +48,85 @@ def positive(name: str):
     return conv
 
 
-def _grid(text: str) -> Grid:
+def finite(name: str):
+    """argparse type: a finite float (no nan/inf), with an error naming the option."""
+
+    def conv(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not math.isfinite(v):
+            raise argparse.ArgumentTypeError(f"{name} must be finite, got {text!r}")
+        return v
+
+    return conv
+
+
+def in_range(name: str, lo: float, hi: float):
+    """argparse type: a float in ``[lo, hi)``, with an error naming the option and the range."""
+
+    def conv(text: str) -> float:
+        v = finite(name)(text)
+        if not lo <= v < hi:
+            raise argparse.ArgumentTypeError(f"{name} must lie in [{lo:g}, {hi:g}), got {text!r}")
+        return v
+
+    return conv
+
+
+def int_range(name: str, lo: int, hi: int):
+    """argparse type: an integer in ``[lo, hi]``, with an error naming the option and the range."""
+
+    def conv(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{name} must lie in [{lo}, {hi}], got {text!r}")
+        return v
+
+    return conv
+
+
+def grid_type(text: str) -> Grid:
+    """argparse type of ``--grid``: :meth:`Grid.parse`, including its size limit (before any work)."""
     try:
         return Grid.parse(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def check_output_dir(text: str, option: str = "--out", files: Iterable[str] = ()) -> Path:
+    """The output folder ``text`` of ``option``, checked before any computation: it must be an
+    existing folder or creatable (its first existing ancestor a folder), writable, and none of
+    ``files`` inside it may be a folder or read-only.  Creates nothing.
+
+    Raises:
+        ValueError: one line naming ``option`` and the reason.
+    """
+    if not str(text).strip():
+        raise ValueError(f"{option} must name a folder, got {text!r}")
+    out = Path(text).expanduser()
+    if out.exists():
+        if not out.is_dir():
+            raise ValueError(f"{option} {text}: exists and is not a folder")
+        base = out
+    else:
+        base = out.absolute().parent
+        while not base.exists() and base != base.parent:
+            base = base.parent
+        if not base.is_dir():
+            raise ValueError(f"{option} {text}: cannot create the folder, {base} is a file")
+    # os.access also reports a read-only file system (EROFS); for root it allows what root may do
+    if not os.access(base, os.W_OK | os.X_OK):
+        raise ValueError(f"{option} {text}: no permission to write in {base}")
+    for name in files:
+        f = out / name
+        if f.is_dir() or (f.exists() and not os.access(f, os.W_OK)):
+            raise ValueError(f"{option} {text}: cannot write {f}")
+    return out
 
 
 def add_model_options(p: argparse.ArgumentParser, damping: bool = True) -> None:
@@ -65,7 +155,7 @@ def add_model_options(p: argparse.ArgumentParser, damping: bool = True) -> None:
         )
     p.add_argument(
         "--grid",
-        type=_grid,
+        type=grid_type,
         default=Grid(),
         metavar="NPHIxNZ",
         help="finite-difference grid N_phi x N_Z as counted in the paper (N_phi includes the periodic "

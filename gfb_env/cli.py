@@ -18,9 +18,13 @@ import numpy as np
 
 from gfb_env import jsonio
 from gfb_env._cli_common import (
+    OneLineParser,
     add_model_options,
     add_speed_options,
     bearing_number_from_args,
+    check_output_dir,
+    finite,
+    in_range,
     model_from_args,
     positive,
 )
@@ -31,9 +35,7 @@ from gfb_env.params import BearingParameters
 __all__ = ["main", "build_parser"]
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, exit code 2
-        self.exit(2, f"{self.prog}: error: {message}\n")
+_Parser = OneLineParser
 
 
 def _print_table(rows: dict) -> None:
@@ -115,19 +117,74 @@ def whirl_frequency_ratio(signal: np.ndarray, sample_interval: float, bearing_nu
         return None
 
 
+#: A developed whirl takes about 40 accepted steps per unit tau (measured: 73 449 steps for tau = 2000
+#: at Lambda = 1.5 on 79x7), and the integrator stops at ``max_steps`` = 10 000 000 steps; so
+#: ``--duration`` is limited to 10e6 / 40 = 250 000 (40 s of rotor time; ~5 min of wall time at
+#: 28 us/step on 79x7, longer on finer grids).
+MAX_DURATION = 250_000.0
+#: At most this many output samples (``--duration / --record-interval``): the record buffer and the
+#: CSV (~90 bytes a row) stay below ~100 MB.
+MAX_SAMPLES = 1_000_000
+_SIMULATE_FILES = ("trajectory.csv", "summary.json", "simulation.png")
+
+
+def check_simulate_args(args: argparse.Namespace) -> Path:
+    """The checks of ``simulate`` that need no model (run before any computation); the output folder."""
+    if args.duration > MAX_DURATION:
+        raise ValueError(
+            f"--duration {args.duration:g} is too long: at most {MAX_DURATION:g} (a whirl takes ~40 "
+            "steps per tau and the integrator stops after 10 000 000 steps)"
+        )
+    n_samples = args.duration / args.record_interval
+    if n_samples > MAX_SAMPLES:
+        raise ValueError(
+            f"--record-interval {args.record_interval:g} gives {n_samples:.3g} samples over --duration "
+            f"{args.duration:g}, at most {MAX_SAMPLES} "
+            f"(--record-interval >= {args.duration / MAX_SAMPLES:.3g})"
+        )
+    return check_output_dir(args.out, "--out", _SIMULATE_FILES)
+
+
+def check_perturbation(
+    model: GFBModel, s_eq: np.ndarray, perturbation: list[float], touchdown: float
+) -> None:
+    """Refuse (``ValueError`` naming ``--perturbation``) a displacement of the journal from the
+    equilibrium ``s_eq`` after which the film is not thicker than ``touchdown`` everywhere.
+
+    The film is linear in the displacement: ``H_i(t) = H_i - t (d_xi sin phi_i + d_eta cos phi_i)``
+    for the unit direction ``d``, so the largest allowed step along ``d`` is exact."""
+    p = np.asarray(perturbation, dtype=float)
+    size = float(np.hypot(*p))
+    if size == 0.0:
+        return
+    d = p / size
+    H = model.film_thickness(s_eq)
+    rate = d[0] * np.sin(model.grid.phi) + d[1] * np.cos(model.grid.phi)
+    closing = rate > 0
+    t_max = float(np.min((H[closing] - touchdown) / rate[closing])) if closing.any() else math.inf
+    if size < t_max:
+        return
+    hmin = float(np.min(H - size * rate))
+    raise ValueError(
+        f"--perturbation {p[0]:g} {p[1]:g} leaves a min film thickness of {hmin:.3g} at the start; in "
+        f"this direction the journal may move less than {t_max:.3g} from its equilibrium to keep the "
+        f"film above --touchdown {touchdown:g}"
+    )
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     from gfb_env._plotting import plot_simulation  # matplotlib only when needed
 
+    out_dir = check_simulate_args(args)
     model = model_from_args(args)
     lam = bearing_number_from_args(args, model.bearing)
-    if not (math.isfinite(args.duration) and args.duration > 0):
-        raise ValueError(f"--duration must be positive, got {args.duration}")
     layout = model.layout
     if args.start == "centre":
         s0 = layout.centred_state()
     else:
-        s0 = find_equilibrium(model, lam)
-        s0 = layout.with_rotor(s0, *(layout.rotor(s0)[:2] + np.array(args.perturbation)), 0.0, 0.0)
+        s_eq = find_equilibrium(model, lam)
+        check_perturbation(model, s_eq, args.perturbation, args.touchdown)
+        s0 = layout.with_rotor(s_eq, *(layout.rotor(s_eq)[:2] + np.array(args.perturbation)), 0.0, 0.0)
     probe = np.array([layout.pressure_index(0, model.grid.midplane_row)])
     integ = TrapezoidalIntegrator(model, s0, lam, args.foil_damping, touchdown_film_thickness=args.touchdown)
     dt_rec = args.record_interval
@@ -135,7 +192,6 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     res = integ.advance(args.duration, record_interval=dt_rec, record_indices=probe, raise_on_failure=False)
     wall = time.perf_counter() - t0
     tr = res.trajectory
-    out_dir = Path(args.out)
     out_dir.mkdir(parents=True, exist_ok=True)
     header = "tau,xi,eta,bearing_number,foil_damping,min_film_thickness,pressure_phi0_z0"
     data = np.column_stack(
@@ -227,7 +283,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=positive("--duration"),
         required=True,
         metavar="TAU",
-        help="simulated nondimensional time (tau = t / T, T = 1.59e-4 s for Table 1)",
+        help="simulated nondimensional time (tau = t / T, T = 1.59e-4 s for Table 1); at most 250000",
     )
     p.add_argument(
         "--start",
@@ -238,11 +294,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--perturbation",
-        type=float,
+        type=finite("--perturbation"),
         nargs=2,
         default=[0.01, 0.0],
         metavar=("DXI", "DETA"),
-        help="displacement of the journal from equilibrium (units of C). Default: 0.01 0",
+        help="displacement of the journal from equilibrium (units of C); the start film must stay "
+        "thicker than --touchdown everywhere. Default: 0.01 0",
     )
     p.add_argument(
         "--record-interval",
@@ -253,10 +310,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--touchdown",
-        type=float,
+        type=in_range("--touchdown", 0.0, 1.0),
         default=0.01,
         metavar="HMIN",
-        help="min film thickness that counts as touchdown (units of C). Default: %(default)s",
+        help="min film thickness that counts as touchdown (units of C), in [0, 1). Default: %(default)s",
     )
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
@@ -279,6 +336,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"gfb {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # e.g. the disk filled up while writing: the outputs were checked up front
+        print(f"gfb {args.command}: error: {exc}", file=sys.stderr)
+        return 1
     except Exception as exc:  # the solver reports, never a traceback for a user error
         if type(exc).__name__ in ("EquilibriumError", "IntegrationError"):
             print(f"gfb {args.command}: error: {exc}", file=sys.stderr)

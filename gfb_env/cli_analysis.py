@@ -9,23 +9,62 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
 from gfb_env import jsonio
-from gfb_env._cli_common import add_model_options, model_from_args
+from gfb_env._cli_common import (
+    add_model_options,
+    check_output_dir,
+    grid_type,
+    int_range,
+    model_from_args,
+    positive,
+)
 
 __all__ = ["add_analysis_commands", "cmd_critical", "cmd_hysteresis", "cmd_map"]
 
 _FMT = argparse.RawDescriptionHelpFormatter
+#: Largest ``--n-steps``: the shooting sweep keeps a sparse Jacobian and its LU per step (measured
+#: 0.26 MB a step on 79x7, 1.7 MB on 157x13), so 2000 steps hold 0.5 GB / 3.4 GB.
+MAX_SHOOTING_STEPS = 2000
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
     add_model_options(p)
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+
+
+def _check_scan(args: argparse.Namespace) -> None:
+    """``--bearing-range`` and ``--scan-step``, checked with the option names before any work."""
+    from gfb_env.analysis.stability import MAX_SCAN_POINTS
+
+    lo, hi = args.bearing_range
+    if not 0 < lo < hi:
+        raise ValueError(f"--bearing-range must satisfy 0 < MIN < MAX, got {lo:g} {hi:g}")
+    n_scan = (hi - lo) / args.scan_step + 1
+    if n_scan > MAX_SCAN_POINTS:
+        raise ValueError(
+            f"--scan-step {args.scan_step:g} gives {n_scan:.3g} scan points over --bearing-range "
+            f"{lo:g} {hi:g}, at most {MAX_SCAN_POINTS} "
+            f"(--scan-step >= {(hi - lo) / (MAX_SCAN_POINTS - 1):.3g})"
+        )
+
+
+def _analysis_model(args: argparse.Namespace):
+    """The model, refused (exit 2) before any work when the dense eigen-analysis would be too large."""
+    from gfb_env.analysis.stability import check_eigen_size
+
+    _check_scan(args)
+    model = model_from_args(args)
+    try:
+        check_eigen_size(model)
+    except ValueError as exc:
+        raise ValueError(f"--grid: {exc}") from None
+    return model
 
 
 def _critical(args, model):
@@ -40,7 +79,7 @@ def _critical(args, model):
 
 def cmd_critical(args: argparse.Namespace) -> int:
     """Handler of ``gfb critical``."""
-    model = model_from_args(args)
+    model = _analysis_model(args)
     t0 = time.perf_counter()
     cp = _critical(args, model)
     d = cp.as_dict()
@@ -62,9 +101,7 @@ def cmd_hysteresis(args: argparse.Namespace) -> int:
     """Handler of ``gfb hysteresis``."""
     from gfb_env.analysis.periodic import ShootingError, coast_down_fold, fold_bearing_number
 
-    model = model_from_args(args)
-    if args.n_steps < 20:
-        raise ValueError(f"--n-steps must be >= 20, got {args.n_steps}")
+    model = _analysis_model(args)
     t0 = time.perf_counter()
     cp = _critical(args, model)
     d = cp.as_dict()
@@ -139,22 +176,41 @@ def _floats(text: str, name: str) -> list[float]:
     return vals
 
 
+#: At most this many Lambda_c searches in one ``gfb map`` (K x D viscoelastic + K elastic + 1 rigid):
+#: ~5 s each on 79x7, so 1000 is ~1.4 h on one core; larger sweeps belong in a script or on a cluster.
+MAX_MAP_SOLVES = 1000
+_MAP_FILES = ("sweep.jsonl", "stability_map.csv", "optimum_damping.csv", "stability_map.png")
+
+
 def cmd_map(args: argparse.Namespace) -> int:
     """Handler of ``gfb map``."""
     from gfb_env.analysis.maps import compute_stability_map, write_stability_map
-    from gfb_env.model import Grid
+    from gfb_env.analysis.stability import check_eigen_size
+    from gfb_env.model import GFBModel
 
-    Grid.parse(args.grid)
     kws = _floats(args.foil_stiffness, "--foil-stiffness")
     dws = _floats(args.foil_damping, "--foil-damping")
-    if args.n_jobs == 0:
-        raise ValueError("--n-jobs must be non-zero")
-    out = Path(args.out)
+    n_solves = len(kws) * len(dws) + len(kws) + 1
+    if n_solves > MAX_MAP_SOLVES:
+        raise ValueError(
+            f"--foil-stiffness x --foil-damping asks for {n_solves} Lambda_c searches, at most "
+            f"{MAX_MAP_SOLVES} (each takes ~5 s on 79x7)"
+        )
+    cpus = os.cpu_count() or 1
+    if args.scheduler is None and not (args.n_jobs == -1 or 1 <= args.n_jobs <= cpus):
+        raise ValueError(
+            f"--n-jobs must be -1 or lie in [1, {cpus}] (this machine's cores), got {args.n_jobs}"
+        )
+    try:  # the largest model of the map (viscoelastic) must fit the dense eigen-analysis
+        check_eigen_size(GFBModel("viscoelastic", args.grid))
+    except ValueError as exc:
+        raise ValueError(f"--grid: {exc}") from None
+    out = check_output_dir(args.out, "--out", _MAP_FILES)
     t0 = time.perf_counter()
     smap = compute_stability_map(
         kws,
         dws,
-        grid=args.grid,
+        grid=str(args.grid),
         n_jobs=args.n_jobs,
         scheduler=args.scheduler,
         checkpoint=out / "sweep.jsonl",
@@ -231,9 +287,9 @@ def add_analysis_commands(subparsers) -> None:
     _add_range(p)
     p.add_argument(
         "--n-steps",
-        type=int,
+        type=int_range("--n-steps", 20, MAX_SHOOTING_STEPS),
         default=300,
-        help="trapezoidal steps per period of the shooting map (default 300)",
+        help=f"trapezoidal steps per period of the shooting map, 20..{MAX_SHOOTING_STEPS} (default 300)",
     )
     p.add_argument(
         "--coast-down",
@@ -266,9 +322,16 @@ def add_analysis_commands(subparsers) -> None:
         metavar="D1,D2,...",
         help="comma-separated D_W values (default 0.3,1,3,10,30)",
     )
-    p.add_argument("--grid", default="79x7", help="finite-difference grid N_phi x N_Z (default 79x7)")
+    p.add_argument(
+        "--grid", type=grid_type, default="79x7", help="finite-difference grid N_phi x N_Z (default 79x7)"
+    )
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
-    p.add_argument("--n-jobs", type=int, default=1, help="parallel joblib workers (default 1; -1: all cores)")
+    p.add_argument(
+        "--n-jobs",
+        type=int,
+        default=1,
+        help="parallel joblib workers (default 1; -1: all cores; at most the number of cores)",
+    )
     p.add_argument(
         "--scheduler",
         default=None,
@@ -282,7 +345,7 @@ def add_analysis_commands(subparsers) -> None:
 def _add_range(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--bearing-range",
-        type=float,
+        type=positive("--bearing-range"),
         nargs=2,
         default=(0.1, 3.0),
         metavar=("MIN", "MAX"),
@@ -290,7 +353,7 @@ def _add_range(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--scan-step",
-        type=float,
+        type=positive("--scan-step"),
         default=0.05,
         help="coarse scan step in Lambda before Brent's refinement (default 0.05)",
     )

@@ -39,7 +39,12 @@ import scipy.sparse as sp
 from gfb_env import _kernels as K
 from gfb_env.params import BearingParameters, NondimensionalParameters, check_positive
 
-__all__ = ["Structure", "Grid", "StateLayout", "GFBModel"]
+__all__ = ["Structure", "Grid", "StateLayout", "GFBModel", "MAX_JACOBIAN_BYTES", "BYTES_PER_BLOCK_ENTRY"]
+
+#: Measured peak bytes per block-Jacobian entry ``(N_phi-1) m^2`` (see :class:`Grid`).
+BYTES_PER_BLOCK_ENTRY = 192
+#: Largest estimated Jacobian memory a :class:`Grid` may need (1 GiB; see :class:`Grid`).
+MAX_JACOBIAN_BYTES = 2**30
 
 
 class Structure(enum.StrEnum):
@@ -68,6 +73,19 @@ class Grid:
     ``n_phi`` includes the periodic duplicate (the paper's 79 points are 78 unique columns) and
     ``n_z`` includes the two ambient edges (7 points are 5 interior rows).  ``n_z`` must be odd so
     that the midplane Z = 0 is a grid row.
+
+    Size limit: a grid whose :attr:`jacobian_bytes` exceeds :data:`MAX_JACOBIAN_BYTES` (1 GiB) is
+    refused with a ``ValueError`` before anything is allocated.  The memory of every solver grows with
+    the block Jacobian, ``N_phi - 1`` columns of ``m x m`` blocks with ``m = N_Z - 1`` unknowns per
+    column in the worst case (viscoelastic: ``N_Z - 2`` pressures and ``Q``): the model's
+    ``jacobian_blocks`` (three ``m x m`` blocks per column), the COO index arrays and data of
+    ``jacobian`` and the sparse LU of ``find_equilibrium`` all scale with ``(N_phi - 1) m^2``.
+    Measured peak memory of ``find_equilibrium`` (viscoelastic, Lambda = 0.6, one thread) above the
+    ~270 MB of the imported package: 625x49 (1.44e6 block entries) +270 MB in 13 s; 1001x65 (4.10e6
+    entries) +760 MB in 46 s, i.e. about 190 bytes per block entry, so :attr:`jacobian_bytes` counts
+    :data:`BYTES_PER_BLOCK_ENTRY` = 192.  The limit admits 1001x65 (0.79 GB) and every grid of the
+    grid-convergence study (finest 313x25, 0.03 GB), and refuses e.g. 2001x201 (80e6 entries,
+    15 GB estimated; it really allocated 11 GB before this check).
     """
 
     n_phi: int = 79
@@ -80,6 +98,13 @@ class Grid:
             raise ValueError(f"n_z must be an integer >= 3, got {self.n_z!r}")
         if self.n_z % 2 == 0:
             raise ValueError(f"n_z must be odd (the midplane Z = 0 must be a grid row), got {self.n_z}")
+        need = self.jacobian_bytes
+        if need > MAX_JACOBIAN_BYTES:
+            raise ValueError(
+                f"grid {self} is too large: its block Jacobian needs about {need / 1e9:.3g} GB "
+                f"((N_phi-1)(N_Z-1)^2 x {BYTES_PER_BLOCK_ENTRY} B), the limit is "
+                f"{MAX_JACOBIAN_BYTES / 2**30:g} GiB (e.g. 1001x65 fits)"
+            )
 
     @classmethod
     def parse(cls, text: str) -> Grid:
@@ -87,7 +112,19 @@ class Grid:
         m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", str(text))
         if not m:
             raise ValueError(f"grid must look like '79x7' (N_phi x N_Z), got {text!r}")
+        if max(len(m.group(1)), len(m.group(2))) > 18:  # int() of thousands of digits is itself slow
+            shown = text.strip() if len(text.strip()) <= 40 else text.strip()[:37] + "..."
+            raise ValueError(
+                f"grid {shown} is too large: the limit is {MAX_JACOBIAN_BYTES / 2**30:g} GiB of block "
+                "Jacobian memory (e.g. 1001x65 fits)"
+            )
         return cls(int(m.group(1)), int(m.group(2)))
+
+    @property
+    def jacobian_bytes(self) -> int:
+        """Estimated peak memory of the block Jacobian and its factorisation, in bytes (see the class
+        docstring); Python integers, so a huge grid cannot overflow the estimate."""
+        return BYTES_PER_BLOCK_ENTRY * (int(self.n_phi) - 1) * (int(self.n_z) - 1) ** 2
 
     def __str__(self) -> str:
         return f"{self.n_phi}x{self.n_z}"

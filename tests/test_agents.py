@@ -22,7 +22,7 @@ SHORT = 25  # control steps per test episode
 
 
 def _make(task: str, **kw):
-    return gym.make(task, max_episode_steps=SHORT, **kw)
+    return gym.make(task, max_episode_steps=SHORT, **kw)  # a task that cannot be built fails the test
 
 
 @pytest.mark.parametrize("task", TASKS)
@@ -176,16 +176,35 @@ def test_interrupted_training_is_saved_like_a_finished_run(tmp_path, monkeypatch
     assert np.all(np.isfinite(a))
 
 
-def test_train_cli_rejects_bad_arguments(capsys):
-    with pytest.raises(SystemExit):
-        train_main(["--algo", "dqn"])
-    with pytest.raises(SystemExit):
-        train_main(["--algo", "ppo", "--env", "gfb_env/Nope-v0", "--timesteps", "10"])
-    with pytest.raises(SystemExit):
-        train_main(["--algo", "ppo", "--timesteps", "-5"])
-    with pytest.raises(SystemExit):
-        train_main(["--algo", "ppo", "--env-kwargs", "{not json"])
-    assert "error" in capsys.readouterr().err
+def _exit_2_one_line(main, argv, fragment, capsys):
+    """``main(argv)`` exits with code 2 and one stderr line containing ``fragment``, nothing on stdout."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    out, err = capsys.readouterr()
+    assert exc.value.code == 2, (argv, err)
+    assert len(err.strip().splitlines()) == 1 and ": error: " in err and fragment in err, err
+    assert out == ""
+
+
+@pytest.mark.parametrize(
+    "argv,fragment",
+    [
+        (["--algo", "dqn"], "argument --algo: invalid choice: 'dqn'"),
+        (
+            ["--algo", "ppo", "--env", "gfb_env/Nope-v0", "--timesteps", "10"],
+            "unknown env id 'gfb_env/Nope-v0'",
+        ),
+        (["--algo", "ppo", "--timesteps", "-5"], "timesteps must be a positive integer, got -5"),
+        (["--algo", "ppo", "--n-envs", "0"], "n_envs must be a positive integer"),
+        (["--algo", "ppo", "--env-kwargs", "{not json"], "--env-kwargs is not valid JSON"),
+        (["--algo", "ppo", "--env-kwargs", "[1]"], "--env-kwargs must be a JSON object"),
+        (["--algo", "ppo", "--out", "{file}/run"], "--out"),
+    ],
+)
+def test_train_cli_rejects_bad_arguments(capsys, tmp_path, argv, fragment):
+    (tmp_path / "file.txt").write_text("")
+    argv = [a.replace("{file}", str(tmp_path / "file.txt")) for a in argv]
+    _exit_2_one_line(train_main, argv, fragment, capsys)
 
 
 def test_benchmark_quick_writes_table(tmp_path):
@@ -221,15 +240,25 @@ def test_benchmark_quick_writes_table(tmp_path):
     assert sum(r["agent"] == "map_informed" and r["task"] == "gfb_env/RunUp-v0" for r in rows2) == 1
 
 
-def test_benchmark_cli_rejects_bad_arguments(tmp_path):
+@pytest.mark.parametrize(
+    "argv,fragment",
+    [
+        (["--episodes", "0"], "--episodes must be >= 1, got 0"),
+        (["--tasks", "gfb_env/Nope-v0"], "unknown task 'gfb_env/Nope-v0'"),
+        (["--n-jobs", "8"], "--n-jobs must be 1 or 2"),
+        (["--env-kwargs", "{not json"], "--env-kwargs is not valid JSON"),
+        (["--out", "{file}/bench"], "cannot create the folder"),
+    ],
+)
+def test_benchmark_cli_rejects_bad_arguments(capsys, tmp_path, argv, fragment):
     from gfb_experiments.benchmark_agents import main
 
-    with pytest.raises(SystemExit):
-        main(["--episodes", "0", "--out", str(tmp_path)])
-    with pytest.raises(SystemExit):
-        main(["--tasks", "gfb_env/Nope-v0", "--out", str(tmp_path)])
-    with pytest.raises(SystemExit):
-        main(["--n-jobs", "8", "--out", str(tmp_path)])
+    (tmp_path / "file.txt").write_text("")
+    argv = [a.replace("{file}", str(tmp_path / "file.txt")) for a in argv]
+    if "--out" not in argv:
+        argv += ["--out", str(tmp_path / "bench")]
+    _exit_2_one_line(main, argv, fragment, capsys)
+    assert not (tmp_path / "bench").exists()
 
 
 def test_committed_policies_load_and_act():

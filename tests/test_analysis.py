@@ -244,10 +244,7 @@ def test_hysteresis_map_roundtrip(tmp_path):
 
 
 def test_optimal_foil_damping_from_committed_map():
-    try:
-        d1 = optimal_foil_damping(1.0)
-    except FileNotFoundError:
-        pytest.skip("stability map not computed")
+    d1 = optimal_foil_damping(1.0)  # the map is committed: a missing file is a failure, not a skip
     d_table = optimal_foil_damping(2.337)
     assert 1.0 < d1 < 10.0  # the paper: near 4 at K_W = 1
     assert d_table > d1  # the optimum grows with K_W
@@ -323,3 +320,19 @@ def test_cli_map_writes_files(tmp_path, capsys):
     d = json.loads(capsys.readouterr().out)
     assert (out / "stability_map.csv").exists() and (out / "stability_map.png").exists()
     assert d["rigid_critical_bearing_number"] > 0
+
+
+def test_analysis_size_limits_refuse_before_any_solve():
+    from gfb_env.analysis.stability import MAX_EIGEN_STATE_SIZE, check_eigen_size, jacobian_eigenvalues
+
+    big = GFBModel("viscoelastic", Grid(157, 25))  # state size 3748
+    assert big.layout.size > MAX_EIGEN_STATE_SIZE
+    with pytest.raises(ValueError, match=r"^grid 157x25 is too large for the dense eigenvalue analysis"):
+        check_eigen_size(big)
+    with pytest.raises(ValueError, match="dense eigenvalue"):
+        jacobian_eigenvalues(big, big.layout.centred_state(), 0.6)
+    with pytest.raises(ValueError, match="dense eigenvalue"):
+        critical_bearing_number(big)
+    check_eigen_size(GFBModel("viscoelastic", Grid(157, 13)))  # 1876: allowed
+    with pytest.raises(ValueError, match=r"^scan_step 1e-06 .* at most 1000"):
+        critical_bearing_number(GFBModel("rigid", COARSE), scan_step=1e-6)

@@ -1,6 +1,9 @@
 import json
+import resource
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import pytest
 
@@ -112,8 +115,10 @@ def test_bad_arguments_one_line_error_exit_2(capsys, argv, fragment):
     assert len(err.strip().splitlines()) == 1
 
 
-def test_value_error_from_the_model_exits_2(capsys):
-    code, _, err = run(
+def test_no_equilibrium_exits_1_with_one_line(capsys):
+    # a too-soft elastic foil is valid input with no equilibrium (paper Sect. 3.2): the solver reports
+    # a failed computation, exit 1, not a usage error
+    code, out, err = run(
         capsys,
         "equilibrium",
         "--structure",
@@ -125,8 +130,204 @@ def test_value_error_from_the_model_exits_2(capsys):
         "--grid",
         "13x5",
     )
-    assert code in (1, 2)
-    assert "error" in err and len(err.strip().splitlines()) == 1
+    assert code == 1
+    assert out == ""
+    assert err.startswith("gfb equilibrium: error: no equilibrium found at Lambda=0.6")
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_value_error_from_the_model_exits_2(capsys):
+    # a ValueError raised in the handler (after parsing) by the model: the dense eigen-analysis limit
+    code, out, err = run(capsys, "critical", "--grid", "157x25")
+    assert code == 2 and out == ""
+    assert err.startswith("gfb critical: error: --grid: grid 157x25 is too large for the dense eigenvalue")
+    assert len(err.strip().splitlines()) == 1
+
+
+# ---------------------------------------------------------------------------------- hostile input
+def _main_exit(argv: list[str]) -> int:
+    """Exit code of ``main``: argparse errors raise SystemExit, handler errors return the code."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
+@pytest.fixture
+def a_file(tmp_path):
+    p = tmp_path / "file.txt"
+    p.write_text("not a folder")
+    return p
+
+
+# (argv with {file} / {out} placeholders, the option the message must name, a fragment of it)
+HOSTILE = [
+    (["equilibrium", "--grid", "2001x201", "--bearing-number", "0.6"], "--grid", "too large"),
+    (["equilibrium", "--grid", "79x99999999999999999999", "--bearing-number", "0.6"], "--grid", "too large"),
+    (
+        ["simulate", "--bearing-number", "0.6", "--duration", "10", "--out", "{file}/out"],
+        "--out",
+        "is a file",
+    ),
+    (["simulate", "--bearing-number", "0.6", "--duration", "10", "--out", "{file}"], "--out", "not a folder"),
+    (["map", "--foil-stiffness", "1", "--foil-damping", "1", "--out", "{file}/out"], "--out", "is a file"),
+    (["map", "--out", "{file}"], "--out", "not a folder"),
+    (
+        [
+            "simulate",
+            "--bearing-number",
+            "0.6",
+            "--duration",
+            "10",
+            "--perturbation",
+            "5",
+            "0",
+            "--out",
+            "{out}",
+        ],
+        "--perturbation",
+        "may move less than",
+    ),
+    (
+        [
+            "simulate",
+            "--bearing-number",
+            "0.6",
+            "--duration",
+            "1",
+            "--perturbation",
+            "nan",
+            "0",
+            "--out",
+            "{out}",
+        ],
+        "--perturbation",
+        "finite",
+    ),
+    (["simulate", "--bearing-number", "0.6", "--duration", "1e9", "--out", "{out}"], "--duration", "at most"),
+    (["simulate", "--bearing-number", "0.6", "--duration", "inf", "--out", "{out}"], "--duration", "finite"),
+    (["simulate", "--bearing-number", "0.6", "--duration", "-3", "--out", "{out}"], "--duration", "positive"),
+    (
+        [
+            "simulate",
+            "--bearing-number",
+            "0.6",
+            "--duration",
+            "100",
+            "--record-interval",
+            "1e-9",
+            "--out",
+            "{out}",
+        ],
+        "--record-interval",
+        "at most",
+    ),
+    (
+        ["simulate", "--bearing-number", "0.6", "--duration", "10", "--touchdown", "-1", "--out", "{out}"],
+        "--touchdown",
+        "[0, 1)",
+    ),
+    (
+        ["simulate", "--bearing-number", "0.6", "--duration", "10", "--touchdown", "nan", "--out", "{out}"],
+        "--touchdown",
+        "finite",
+    ),
+    (
+        ["simulate", "--bearing-number", "nan", "--duration", "10", "--out", "{out}"],
+        "--bearing-number",
+        "finite",
+    ),
+    (["simulate", "--speed-rpm", "-5", "--duration", "10", "--out", "{out}"], "--speed-rpm", "positive"),
+    (
+        ["simulate", "--bearing-number", "0.6", "--foil-damping", "0", "--duration", "10", "--out", "{out}"],
+        "--foil-damping",
+        "positive",
+    ),
+    (["equilibrium", "--bearing-number", "0.6", "--foil-stiffness", "inf"], "--foil-stiffness", "finite"),
+    (["critical", "--grid", "313x25"], "--grid", "dense eigenvalue"),
+    (["critical", "--scan-step", "1e-9"], "--scan-step", "at most 1000"),
+    (["critical", "--scan-step", "0"], "--scan-step", "positive"),
+    (["critical", "--bearing-range", "3", "1"], "--bearing-range", "0 < MIN < MAX"),
+    (["critical", "--bearing-range", "nan", "1"], "--bearing-range", "finite"),
+    (["hysteresis", "--n-steps", "100000000"], "--n-steps", "[20, 2000]"),
+    (["hysteresis", "--n-steps", "5"], "--n-steps", "[20, 2000]"),
+    (["map", "--out", "{out}", "--n-jobs", "100000"], "--n-jobs", "cores"),
+    (["map", "--out", "{out}", "--n-jobs", "0"], "--n-jobs", "cores"),
+    (["map", "--out", "{out}", "--grid", "2001x201"], "--grid", "too large"),
+    (["map", "--out", "{out}", "--grid", "313x25"], "--grid", "dense eigenvalue"),
+    (["map", "--out", "{out}", "--foil-stiffness", "1,nan"], "--foil-stiffness", "positive"),
+    (["map", "--out", "{out}", "--foil-damping", ",".join(["1"] * 1000)], "--foil-damping", "at most"),
+]
+
+
+@pytest.mark.parametrize("argv,option,fragment", HOSTILE, ids=[" ".join(a[:3])[:60] for a, _, _ in HOSTILE])
+def test_hostile_input_one_line_exit_2_before_any_work(capsys, tmp_path, a_file, argv, option, fragment):
+    out = tmp_path / "out"
+    argv = [a.replace("{file}", str(a_file)).replace("{out}", str(out)) for a in argv]
+    t0 = time.perf_counter()
+    code = _main_exit(argv)
+    wall = time.perf_counter() - t0
+    stdout, err = capsys.readouterr()
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"gfb {argv[0]}: error:")
+    assert option in lines[0] and fragment in lines[0], lines[0]
+    assert "Traceback" not in err and stdout == ""
+    assert not out.exists()  # refused before anything was written
+    assert wall < 20, f"{wall:.1f} s: heavy work before the refusal"  # the numba cache may load once
+
+
+@pytest.mark.parametrize(
+    "argv,option",
+    [
+        (["equilibrium", "--grid", "2001x201", "--bearing-number", "0.6"], "--grid"),
+        (["equilibrium", "--grid", "79x99999999999999999999", "--bearing-number", "0.6"], "--grid"),
+        (["simulate", "--bearing-number", "0.6", "--duration", "10", "--out", "{file}/out"], "--out"),
+        (["map", "--out", "{file}/out"], "--out"),
+    ],
+)
+def test_hostile_input_through_the_entry_point(tmp_path, a_file, argv, option):
+    """The real process: exit status 2, one stderr line, no traceback, no heavy work.  The address
+    space is capped at 3 GiB so that a regression fails instead of taking the machine's memory."""
+    argv = [a.replace("{file}", str(a_file)) for a in argv]
+
+    def cap_memory():
+        resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
+
+    t0 = time.perf_counter()
+    proc = subprocess.run(
+        [sys.executable, "-m", "gfb_env", *argv],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        preexec_fn=cap_memory,
+    )
+    wall = time.perf_counter() - t0
+    assert proc.returncode == 2, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and option in lines[0] and "Traceback" not in proc.stderr, proc.stderr
+    assert proc.stdout == ""
+    assert wall < 20
+
+
+def test_check_output_dir_refuses_a_folder_without_write_permission(tmp_path, monkeypatch):
+    from gfb_env import _cli_common
+
+    # chmod does not stop root, so the permission answer itself is replaced
+    monkeypatch.setattr(_cli_common.os, "access", lambda path, mode: Path(path) != tmp_path)
+    with pytest.raises(ValueError, match=r"^--out .*: no permission to write in "):
+        _cli_common.check_output_dir(str(tmp_path / "new" / "deeper"), "--out")
+    with pytest.raises(ValueError, match="no permission"):
+        _cli_common.check_output_dir(str(tmp_path), "--out")
+    assert not (tmp_path / "new").exists()
+    # a writable parent: accepted, and nothing is created
+    monkeypatch.undo()
+    assert _cli_common.check_output_dir(str(tmp_path / "new"), "--out") == tmp_path / "new"
+    assert not (tmp_path / "new").exists()
+    (tmp_path / "trajectory.csv").mkdir()
+    with pytest.raises(ValueError, match="cannot write"):
+        _cli_common.check_output_dir(str(tmp_path), "--out", ["trajectory.csv"])
 
 
 def test_console_entry_point_help():

@@ -10,7 +10,7 @@ import pytest
 
 
 def _run(name, out, *extra):
-    mod = importlib.import_module(f"experiments.{name}")
+    mod = importlib.import_module(f"gfb_experiments.{name}")
     assert mod.main(["--quick", "--out", str(out), *extra]) == 0
 
 
@@ -39,7 +39,23 @@ def test_fig6_quick(tmp_path):
 
 def test_fig7_quick(tmp_path):
     _run("fig7_fft", tmp_path)
-    assert (tmp_path / "fft.png").exists() and (tmp_path / "fft_peaks.csv").exists()
+    assert (tmp_path / "fft.png").stat().st_size > 10_000
+    rows = list(csv.DictReader((tmp_path / "fft_peaks.csv").open()))
+    assert [(float(r["foil_damping"]), r["status"]) for r in rows] == [(4.0, "whirl"), (16.0, "whirl")]
+    for r in rows:
+        # a sub-synchronous whirl (paper Fig. 7: the peak lies just below omega = Lambda / 2)
+        assert 0.3 < float(r["ratio"]) < 0.55
+        assert float(r["ratio"]) == pytest.approx(float(r["omega"]) / 0.6, rel=1e-12)
+        assert 0 < float(r["amplitude"]) < float(r["max_eccentricity"]) < 1.5
+    # near the optimum D_W = 4 the whirl is smaller than over-damped (the point of Fig. 7)
+    assert float(rows[0]["amplitude"]) < float(rows[1]["amplitude"])
+    spectra = list(csv.DictReader((tmp_path / "spectra.csv").open()))
+    for dw, r in zip(("4.0", "16.0"), rows):
+        sp = [s for s in spectra if s["foil_damping"] == dw]
+        peak = max(sp, key=lambda s: float(s["amplitude"]))
+        assert float(peak["omega_over_lambda"]) == pytest.approx(float(r["ratio"]), abs=0.03)
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert s["grid"] == "33x7" and len(s["peaks"]) == 2
 
 
 @pytest.mark.slow

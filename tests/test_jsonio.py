@@ -3,7 +3,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from gfb_env import jsonio
 
@@ -37,10 +36,16 @@ def test_non_finite_values_become_null_and_numpy_becomes_python():
     }
 
 
-def test_plain_json_module_would_write_nan():
-    # the reason for the module: the standard library writes a token strict parsers reject
-    with pytest.raises(ValueError):
-        _strict_loads(json.dumps({"x": math.nan}))
+def test_dumps_writes_null_where_the_plain_json_module_writes_nan():
+    # the reason for the module: the standard library writes tokens strict parsers reject; jsonio's
+    # exact text for the same object has none of them
+    obj = {"x": math.nan, "y": [-math.inf, np.float32("nan")], "z": 1.5}
+    plain = json.dumps({"x": math.nan, "y": [-math.inf, math.nan], "z": 1.5})
+    assert "NaN" in plain and "-Infinity" in plain
+    text = jsonio.dumps(obj)
+    assert text == '{"x": null, "y": [null, null], "z": 1.5}'
+    assert _strict_loads(text) == {"x": None, "y": [None, None], "z": 1.5}
+    assert jsonio.dumps(obj, indent=2).count("\n") == 7  # keyword arguments reach json.dumps
 
 
 def test_write_json_round_trips(tmp_path):

@@ -1,3 +1,5 @@
+import time
+
 import numpy as np
 import pytest
 
@@ -226,3 +228,32 @@ def test_physical_trends_at_equilibrium():
     assert soft.eccentricity(so) > stiff.eccentricity(ss)
     assert soft.layout.pressure(so).max() < stiff.layout.pressure(ss).max()
     assert np.abs(soft.foil_deflection(so)).max() > np.abs(stiff.foil_deflection(ss)).max()
+
+
+def test_grid_size_limit_refuses_before_allocating():
+    from gfb_env.model import BYTES_PER_BLOCK_ENTRY, MAX_JACOBIAN_BYTES
+
+    # the estimate: (N_phi - 1) columns of (N_Z - 1)^2 block entries, 192 bytes each (measured)
+    assert Grid(79, 7).jacobian_bytes == BYTES_PER_BLOCK_ENTRY * 78 * 6**2
+    assert Grid(1001, 75).jacobian_bytes <= MAX_JACOBIAN_BYTES < BYTES_PER_BLOCK_ENTRY * 1000 * 76**2
+    Grid(1001, 75)  # the largest refinement in N_Z at 1001 columns is accepted
+    for text in ("1001x77", "2001x201", "79x99999999999999999999", "9" * 5000 + "x7"):
+        t0 = time.perf_counter()
+        with pytest.raises(ValueError, match=r"^grid \S+ is too large: .*1 GiB"):
+            Grid.parse(text)
+        assert time.perf_counter() - t0 < 0.1
+    with pytest.raises(ValueError, match="^grid 2001x201 is too large"):
+        Grid(2001, 201)
+    with pytest.raises(ValueError, match="^grid 2001x201 is too large"):  # numpy ints cannot wrap round
+        Grid(np.int64(2001), np.int64(201))
+    with pytest.raises(ValueError, match="^grid 2001x201 is too large"):
+        GFBModel("rigid", grid="2001x201")
+
+
+def test_grid_size_limit_reaches_gym_make():
+    import gymnasium as gym
+
+    import gfb_env.envs  # noqa: F401
+
+    with pytest.raises(ValueError, match="^grid 2001x201 is too large"):
+        gym.make("gfb_env/RunUp-v0", grid="2001x201")

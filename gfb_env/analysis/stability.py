@@ -42,6 +42,9 @@ __all__ = [
     "Stability",
     "CriticalPoint",
     "jacobian_eigenvalues",
+    "check_eigen_size",
+    "MAX_EIGEN_STATE_SIZE",
+    "MAX_SCAN_POINTS",
     "linear_stability",
     "critical_bearing_number",
 ]
@@ -59,10 +62,33 @@ class NoCriticalPointError(StabilityAnalysisError):
     """The equilibrium stays stable up to the end of the scanned range: ``Lambda_c`` lies beyond it."""
 
 
+#: Largest state size ``n`` whose dense eigenvalue solve is allowed.  Measured (scipy ``eigvals``,
+#: one thread): n = 472 (paper grid 79x7) 0.08 s, n = 1000 0.45 s, n = 2000 3.9 s and 64 MB per
+#: dense copy; the O(n^3) solve would take ~4 min at n = 7492 (313x25).  A ``Lambda_c`` search does
+#: about 70 solves, so n = 2000 is already ~5 min.  Viscoelastic grids up to 157x13 and 79x25 fit.
+MAX_EIGEN_STATE_SIZE = 2000
+
+#: Largest number of coarse scan points of :func:`critical_bearing_number` (default: 59).
+MAX_SCAN_POINTS = 1000
+
+
+def check_eigen_size(model: GFBModel) -> None:
+    """Refuse (``ValueError`` naming ``grid``) a model too large for the dense eigenvalue solve."""
+    n = model.layout.size
+    if n > MAX_EIGEN_STATE_SIZE:
+        raise ValueError(
+            f"grid {model.grid} is too large for the dense eigenvalue analysis: state size {n} "
+            f"({model.structure.value}) > {MAX_EIGEN_STATE_SIZE} (e.g. 157x13 and 79x25 fit)"
+        )
+
+
 def jacobian_eigenvalues(
     model: GFBModel, state: np.ndarray, bearing_number: float, foil_damping: float = 1.0
 ) -> np.ndarray:
-    """All eigenvalues of ``J = dk/ds`` at ``state``, sorted by decreasing real part."""
+    """All eigenvalues of ``J = dk/ds`` at ``state``, sorted by decreasing real part.
+
+    Raises ``ValueError`` when the state size exceeds :data:`MAX_EIGEN_STATE_SIZE`."""
+    check_eigen_size(model)
     J = model.jacobian(state, bearing_number, foil_damping).toarray()
     ev = sla.eigvals(J, overwrite_a=True, check_finite=False)
     return ev[np.argsort(-ev.real, kind="stable")]
@@ -212,6 +238,13 @@ def critical_bearing_number(
         raise ValueError(f"bearing_range must satisfy 0 < min < max, got {bearing_range!r}")
     step = check_positive("scan_step", scan_step)
     check_positive("xtol", xtol)
+    n_scan = (hi - lo) / step + 1
+    if n_scan > MAX_SCAN_POINTS:
+        raise ValueError(
+            f"scan_step {step:g} over bearing_range [{lo:g}, {hi:g}] gives {n_scan:.3g} scan points, "
+            f"at most {MAX_SCAN_POINTS} (scan_step >= {(hi - lo) / (MAX_SCAN_POINTS - 1):.3g})"
+        )
+    check_eigen_size(model)
     evals = 0
     cache: dict[float, np.ndarray] = {}
     last_state: list[np.ndarray | None] = [None]

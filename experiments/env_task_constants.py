@@ -14,7 +14,7 @@ external load F_L.
 Stability uses the private helper ``gfb_env.envs._stability`` (TEMPORARY, to be replaced by
 ``gfb_env.analysis``).  Run::
 
-    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python experiments/env_task_constants.py
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python -m gfb_experiments.env_task_constants
 
 (one BLAS thread: the dense eigenvalue solves oversubscribe a shared machine otherwise; ~6 min).
 """
@@ -54,7 +54,7 @@ def main() -> None:
         "bearing": NOMINAL_BEARING.as_dict(),
         "foil_stiffness": NOMINAL_BEARING.foil_stiffness,
         "damping_range": [D_MIN, D_MAX],
-        "command": "python experiments/env_task_constants.py "
+        "command": "python -m gfb_experiments.env_task_constants "
         + " ".join(f"--grids {args.grids} --default-grid {args.default_grid}".split()),
         "nominal": {},
     }

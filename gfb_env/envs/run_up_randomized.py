@@ -8,7 +8,7 @@ import math
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
-from gfb_env.envs._data import NOMINAL_BEARING, load_task_constants
+from gfb_env.envs._data import NOMINAL_BEARING, randomized_task_table
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, viscoelastic_model
 from gfb_env.envs.run_up import RunUpEnv
 from gfb_env.integrator import find_equilibrium
@@ -119,12 +119,7 @@ class RunUpRandomizedEnv(RunUpEnv):
         grid: str | Grid = DEFAULT_GRID,
         **kwargs,
     ):
-        table = load_task_constants().get("randomized")
-        if table is None:
-            raise RuntimeError(
-                "data/task_constants.json has no randomized table; run experiments/env_task_constants.py"
-            )
-        self.table = BestStableSpeedTable(table)
+        self.table = BestStableSpeedTable(randomized_task_table())
         self.observe_parameters = bool(observe_parameters)
         ranges = {}
         for name, r, (tlo, thi) in (

@@ -21,8 +21,12 @@ import math
 import warnings
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from gfb_env.params import BearingParameters
+
+if TYPE_CHECKING:
+    from gfb_env.model import Grid
 
 __all__ = [
     "NOMINAL_BEARING",
@@ -102,7 +106,7 @@ def _expected_seconds(grid: str, nominal: dict) -> float:
     return float(s0) * (n / _unknowns(g0)) ** 2.5
 
 
-def nominal_task_constants(grid, bearing: BearingParameters) -> dict:
+def nominal_task_constants(grid: Grid | str, bearing: BearingParameters) -> dict:
     """Stability constants of the tasks' nominal bearing on ``grid`` (a :class:`~gfb_env.model.Grid`):
     ``lambda_best`` (max over D_W of the critical bearing number Lambda_c), ``d_opt``, ``lambda_c_dmin``,
     the curve ``Lambda_c(D_W)`` and the whirl start state.

@@ -20,6 +20,7 @@ import argparse
 import csv
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -344,12 +345,22 @@ def main(argv: list[str] | None = None) -> int:
     if not a.no_learned:
         # before any episode: a benchmark that silently lacks its learned agents is wrong, not partial
         root = Path(a.policies) if a.policies else POLICIES_DIR
+        # one line on stderr, no usage text: the arguments are fine, the data are missing
         try:
             learned = load_learned_policies(root)
         except FileNotFoundError as exc:
-            ap.error(f"{exc}; pass --no-learned to run the scripted baselines only")
+            print(
+                f"{ap.prog}: error: {exc}; pass --no-learned to run the scripted baselines only",
+                file=sys.stderr,
+            )
+            return 2
         if not learned:
-            ap.error(f"no learned policy (<name>/model.zip) in {root}; pass --no-learned to run without")
+            print(
+                f"{ap.prog}: error: no learned policy (<name>/model.zip) in {root}; "
+                "pass --no-learned to run the scripted baselines only",
+                file=sys.stderr,
+            )
+            return 2
     skipped = {}
     usable = []
     for t in tasks:

@@ -100,10 +100,17 @@ class LearnedPolicy(Policy):
 
 
 def load_learned_policies(root: str | Path = POLICIES_DIR) -> list[LearnedPolicy]:
-    """Every committed policy under ``root`` (directories with a ``model.zip``), sorted by name."""
+    """Every committed policy under ``root`` (directories with a ``model.zip``), sorted by name.
+
+    Default ``root``: the policies shipped as package data (``gfb_agents/policies``).  A missing folder
+    raises FileNotFoundError (a broken install or a wrong path must not read as "no policies"); an
+    existing folder without any ``<name>/model.zip`` gives ``[]``."""
     root = Path(root)
-    if not root.exists():
-        return []
+    if not root.is_dir():
+        raise FileNotFoundError(
+            f"no policies folder {root} (expected <name>/model.zip inside; the committed policies ship "
+            "with gfb_agents as gfb_agents/policies)"
+        )
     return [LearnedPolicy(d) for d in sorted(root.iterdir()) if (d / "model.zip").exists()]
 
 

@@ -6,12 +6,13 @@ nominal bearing, i.e. the documented task constants of the environment (``env.co
 (the lower edge of the hysteresis band) -- never the drawn parameters of a randomised episode nor the
 simulator state.
 
-The fold curve is read from the committed hysteresis map (:func:`gfb_env.analysis.load_hysteresis_map`)
-when that map contains the nominal foil stiffness (within 5 %); otherwise it is unknown (empty) and the
-agents fall back to ``Lambda_c`` minus a margin.  (At the time of writing the map covers ``K_W = 1`` and
-the Table-1 foil, not the tasks' ``K_W = 0.50``; a quasi-static coast-down from the stored whirl at
-``d_opt`` found the whirl dying within a step of ``Lambda_c``, i.e. a narrow band, but critical
-slowing-down near ``Lambda_c`` makes that estimate unreliable, so it is not used.)
+The fold curve is read from the hysteresis map shipped with the package
+(:func:`gfb_env.analysis.load_hysteresis_map`, ``gfb_env/data/hysteresis_map.csv``) when that map contains
+the nominal foil stiffness (within 5 %); otherwise it is unknown (empty) and the agents fall back to
+``Lambda_c`` minus a margin. (At the time of writing the map covers ``K_W = 1`` and the Table-1 foil, not
+the tasks' ``K_W = 0.50``; a quasi-static coast-down from the stored whirl at ``d_opt`` found the whirl
+dying within a step of ``Lambda_c``, i.e. a narrow band, but critical slowing-down near ``Lambda_c`` makes
+that estimate unreliable, so it is not used.)
 """
 
 from __future__ import annotations
@@ -49,7 +50,8 @@ class NominalMap:
         cls, env, hysteresis_map_path: str | Path | None = None, use_fold: bool = True
     ) -> NominalMap:
         """From a gfb_env task (its documented ``constants`` of the nominal bearing) and, if it covers the
-        nominal foil stiffness, the committed hysteresis map (``hysteresis_map_path``: default location)."""
+        nominal foil stiffness, the hysteresis map (``hysteresis_map_path``; default: the one shipped with
+        gfb_env; a missing file raises FileNotFoundError)."""
         u = getattr(env, "unwrapped", env)
         c = u.constants
         # the tabulated curve plus its refined maximum (lambda_best at d_opt), sorted in D_W
@@ -105,10 +107,9 @@ def _nominal_fold(foil_stiffness: float, path: str | Path | None) -> tuple[np.nd
     from gfb_env.analysis import load_hysteresis_map
 
     empty = (np.zeros(0), np.zeros(0))
-    try:
-        hm = load_hysteresis_map(path)
-    except (FileNotFoundError, ValueError):
-        return empty
+    # a missing or empty map is an error (FileNotFoundError / ValueError naming the file and the script
+    # that makes it), never a silently unknown fold; "unknown" means only: the map lacks this stiffness
+    hm = load_hysteresis_map(path)
     if not (foil_stiffness > 0):
         return empty
     sel = np.abs(np.log(hm.foil_stiffness / foil_stiffness)) < 0.05

@@ -3,7 +3,7 @@
     python -m gfb_agents.train --algo {ppo,sac} --env gfb_env/RunUpRandomized-v0 [--timesteps N] [--seed S]
                            [--n-envs K] [--resume CHECKPOINT.zip] [--out DIR] [--hyperparams FILE]
                            [--env-kwargs JSON] [--eval-freq N] [--eval-episodes N]
-                           [--checkpoint-freq N] [--no-progress-bar]
+                           [--checkpoint-freq N] [--no-progress-bar] [--vec-env {dummy,subproc}]
 
 Hyperparameters come from ``agents/hyperparams/<algo>.yml`` in rl-zoo3's layout (top-level keys are env
 ids; besides the algorithm's keyword arguments the zoo's ``n_timesteps``, ``policy``, ``n_envs`` and
@@ -42,10 +42,13 @@ import yaml
 
 from gfb_env import jsonio
 from gfb_env._cli_common import OneLineParser, check_output_dir
+from gfb_env._threads import set_thread_defaults
 
 __all__ = [
     "ALGOS",
     "TrainConfig",
+    "VEC_ENVS",
+    "importable_env_id",
     "load_hyperparams",
     "make_vec_env_for",
     "train",
@@ -116,23 +119,58 @@ def _split_hyperparams(hp: dict[str, Any]) -> tuple[dict[str, Any], dict[str, An
     return zoo, kwargs
 
 
-def make_vec_env_for(
-    env_id: str, n_envs: int, seed: int, monitor_dir: str | Path | None = None, env_kwargs: dict | None = None
-):
-    """A ``DummyVecEnv`` of ``n_envs`` Monitor-wrapped copies of ``env_id`` seeded ``seed, seed+1, ...``.
+VEC_ENVS = ("dummy", "subproc")
 
-    (DummyVecEnv: the control step is a stiff integration in compiled code, and this machine has two
-    cores shared with other work; set ``n_envs`` to 1 or 2.)"""
+
+def importable_env_id(env_id: str) -> str:
+    """``env_id`` in gymnasium's ``"module:id"`` form for the gfb_env tasks (``"gfb_env:gfb_env/RunUp-v0"``).
+
+    A worker process started by ``spawn``/``forkserver`` (SB3's ``SubprocVecEnv``) is a fresh interpreter
+    that never imported gfb_env, so the plain id is unknown there (``NamespaceNotFound``) unless its main
+    module is a file that imports gfb_env; with the module prefix ``gymnasium.make`` imports gfb_env, which
+    registers the ids.  Other ids are returned unchanged."""
+    if ":" not in env_id and env_id.startswith("gfb_env/"):
+        return "gfb_env:" + env_id
+    return env_id
+
+
+def make_vec_env_for(
+    env_id: str,
+    n_envs: int,
+    seed: int,
+    monitor_dir: str | Path | None = None,
+    env_kwargs: dict | None = None,
+    vec_env: str = "dummy",
+):
+    """A vector env of ``n_envs`` Monitor-wrapped copies of ``env_id`` seeded ``seed, seed+1, ...``.
+
+    ``vec_env="dummy"`` (default): SB3's ``DummyVecEnv``, all copies in this process (the control step is
+    a stiff integration in compiled code and the cores are few and shared; set ``n_envs`` to 1 or 2).
+    ``vec_env="subproc"``: ``SubprocVecEnv``, one worker process per copy.  The workers get the id in the
+    ``"module:id"`` form (:func:`importable_env_id`), so this works from ``python -c`` and stdin too, and
+    one copy is made, reset and stepped here first so that numba compiles (or loads) the kernels once and
+    writes its on-disk cache before the workers start: they load the kernels instead of compiling them
+    all at once."""
     from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     import gfb_env.envs  # noqa: F401  (registers the ids)
 
+    if vec_env not in VEC_ENVS:
+        raise ValueError(f"vec_env must be one of {VEC_ENVS}, got {vec_env!r}")
+    env_kwargs = dict(env_kwargs or {})
+    if vec_env == "subproc":
+        warm = gym.make(env_id, **env_kwargs)
+        warm.reset(seed=seed)
+        warm.step(warm.action_space.sample())
+        warm.close()
     return make_vec_env(
-        env_id,
+        importable_env_id(env_id) if vec_env == "subproc" else env_id,
         n_envs=n_envs,
         seed=seed,
         monitor_dir=str(monitor_dir) if monitor_dir else None,
-        env_kwargs=env_kwargs or {},
+        env_kwargs=env_kwargs,
+        vec_env_cls=SubprocVecEnv if vec_env == "subproc" else DummyVecEnv,
     )
 
 
@@ -220,6 +258,7 @@ class TrainConfig:
         eval_freq, eval_episodes, checkpoint_freq: evaluation and checkpoint cadence in env steps.
         progress_bar, tensorboard, verbose: output.
         torch_threads: torch CPU threads (1: the env is the bottleneck and cores are shared).
+        vec_env: ``"dummy"`` or ``"subproc"`` for the training envs (:func:`make_vec_env_for`).
     """
 
     algo: str
@@ -238,6 +277,7 @@ class TrainConfig:
     tensorboard: bool = True
     verbose: int = 0
     torch_threads: int = 1
+    vec_env: str = "dummy"
 
     def __post_init__(self) -> None:
         algo = str(self.algo).lower()
@@ -257,6 +297,8 @@ class TrainConfig:
             raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
         for name in ("eval_freq", "eval_episodes", "checkpoint_freq", "torch_threads"):
             _check_count(name, getattr(self, name))
+        if self.vec_env not in VEC_ENVS:
+            raise ValueError(f"vec_env must be one of {VEC_ENVS}, got {self.vec_env!r}")
         for name in ("out", "resume", "hyperparams"):
             v = getattr(self, name)
             if v is not None:
@@ -310,7 +352,7 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
         ev = out / "eval" / "evaluations.npz"
         if ev.exists():
             ev.rename(out / "eval" / f"evaluations_before_{int(time.time())}.npz")
-    venv = make_vec_env_for(env_id, n_envs, seed, monitor_dir, env_kwargs)
+    venv = make_vec_env_for(env_id, n_envs, seed, monitor_dir, env_kwargs, vec_env=c.vec_env)
     eval_base = make_vec_env_for(env_id, 1, seed + 10_000, None, env_kwargs)
     norm = zoo["normalize"]
     cls = _algo_class(algo)
@@ -538,7 +580,14 @@ def main(argv: list[str] | None = None) -> int:
         default=1,
         help="torch CPU threads (default 1: the env is the bottleneck and cores are shared)",
     )
+    ap.add_argument(
+        "--vec-env",
+        choices=VEC_ENVS,
+        default="dummy",
+        help="training envs in this process (dummy) or one worker process each (subproc)",
+    )
     a = ap.parse_args(argv)
+    set_thread_defaults()  # single-threaded BLAS in the subproc workers (see gfb_env._threads)
     env_kwargs = None
     if a.env_kwargs:
         try:
@@ -573,6 +622,7 @@ def main(argv: list[str] | None = None) -> int:
             tensorboard=not a.no_tensorboard,
             verbose=a.verbose,
             torch_threads=a.torch_threads,
+            vec_env=a.vec_env,
         )
         out = train(config, cmd)
     except (ValueError, FileNotFoundError) as exc:

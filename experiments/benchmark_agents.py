@@ -1,7 +1,7 @@
 """Run-up benchmark: every scripted baseline and every committed learned policy on every task.
 
     python -m gfb_experiments.benchmark_agents [--episodes 50] [--quick] [--tasks ID,ID] [--agents NAME,NAME]
-                                           [--out results] [--n-jobs 1]
+                                           [--out results] [--n-jobs 1] [--policies DIR | --no-learned]
 
 Each (task, agent) pair plays the same fixed, seeded episodes (seeds ``10000, 10001, ...``; the env is
 reset with the seed, the policy is deterministic), and the results are reduced to one row
@@ -10,7 +10,8 @@ reset with the seed, the policy is deterministic), and the results are reduced t
 (Lambda, D_W) plane over the stable / bistable / whirl regions of the nominal bearing's map; the paths are
 also kept in ``benchmark_agents_paths.json``).  ``--quick`` plays one episode per pair (for tests);
 ``--merge`` replaces/adds the (task, agent) rows of this run in an existing table; ``--env-kwargs`` passes
-``gymnasium.make`` arguments per task.
+``gymnasium.make`` arguments per task.  Learned policies that are expected but missing (no folder, or no
+``<name>/model.zip`` in it) end the run at once with exit code 2; ``--no-learned`` runs without them.
 """
 
 from __future__ import annotations
@@ -18,13 +19,21 @@ from __future__ import annotations
 import csv
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
-from gfb_agents.evaluate import EpisodeResult, LearnedPolicy, evaluate, load_learned_policies, summarise
+from gfb_agents.evaluate import (
+    POLICIES_DIR,
+    EpisodeResult,
+    LearnedPolicy,
+    evaluate,
+    load_learned_policies,
+    summarise,
+)
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.scripted import Policy, make_scripted_agents
 from gfb_env import jsonio
@@ -78,14 +87,19 @@ def run_benchmark(
     n_jobs: int = 1,
     policies_dir: str | Path | None = None,
     env_kwargs: dict[str, dict] | None = None,
+    learned: list[LearnedPolicy] | None = None,
 ) -> tuple[list[dict], dict]:
     """Rows of the table and the first-episode paths ``{(task, agent): {"lam", "dw", "success", "reason"}}``.
 
-    ``env_kwargs`` maps a task id to extra ``gymnasium.make`` arguments (used by every agent of the task)."""
+    ``env_kwargs`` maps a task id to extra ``gymnasium.make`` arguments (used by every agent of the task).
+    ``learned``: the learned policies to run (default: :func:`load_learned_policies` of ``policies_dir``
+    or of the shipped folder; a missing folder raises FileNotFoundError); ``[]`` runs the scripted
+    baselines only."""
     from tqdm import tqdm
 
     env_kwargs = env_kwargs or {}
-    learned = load_learned_policies(policies_dir) if policies_dir else load_learned_policies()
+    if learned is None:
+        learned = load_learned_policies(policies_dir) if policies_dir else load_learned_policies()
     seeds = [SEED0 + i for i in range(episodes)]
     jobs = []
     for task in tasks:
@@ -283,7 +297,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--agents", default=None, help="comma-separated agent names (default: all)")
     ap.add_argument("--out", default="results", help="output directory")
     ap.add_argument(
-        "--policies", default=None, help="directory of committed policies (default agents/policies)"
+        "--policies",
+        default=None,
+        help="directory of learned policies (default: the committed ones, shipped as gfb_agents/policies)",
+    )
+    ap.add_argument(
+        "--no-learned",
+        action="store_true",
+        help="run the scripted baselines only (without it, missing learned policies are an error)",
     )
     ap.add_argument("--n-jobs", type=int, default=1, help="parallel (task, agent) pairs, at most 2")
     ap.add_argument(
@@ -318,9 +339,36 @@ def main(argv: list[str] | None = None) -> int:
     for t in tasks:
         if t not in gym.registry:
             ap.error(f"unknown task {t!r}; known: {', '.join(TASKS)}")
+    if a.no_learned and a.policies:
+        ap.error("--no-learned and --policies exclude each other")
+    learned: list[LearnedPolicy] = []
+    if not a.no_learned:
+        # before any episode: a benchmark that silently lacks its learned agents is wrong, not partial
+        root = Path(a.policies) if a.policies else POLICIES_DIR
+        # one line on stderr, no usage text: the arguments are fine, the data are missing
+        try:
+            learned = load_learned_policies(root)
+        except FileNotFoundError as exc:
+            print(
+                f"{ap.prog}: error: {exc}; pass --no-learned to run the scripted baselines only",
+                file=sys.stderr,
+            )
+            return 2
+        if not learned:
+            print(
+                f"{ap.prog}: error: no learned policy (<name>/model.zip) in {root}; "
+                "pass --no-learned to run the scripted baselines only",
+                file=sys.stderr,
+            )
+            return 2
     t0 = time.perf_counter()
     rows, paths = run_benchmark(
-        tasks, episodes, set(a.agents.split(",")) if a.agents else None, a.n_jobs, a.policies, env_kwargs
+        tasks,
+        episodes,
+        set(a.agents.split(",")) if a.agents else None,
+        a.n_jobs,
+        env_kwargs=env_kwargs,
+        learned=learned,
     )
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)

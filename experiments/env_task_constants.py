@@ -13,9 +13,11 @@ external load F_L.
 
 Stability uses :mod:`gfb_env.analysis.task_constants`.  Run::
 
-    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python experiments/env_task_constants.py
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python -m gfb_experiments.env_task_constants
 
-(one BLAS thread: the dense eigenvalue solves oversubscribe a shared machine otherwise; ~6 min).
+(one BLAS thread: the dense eigenvalue solves oversubscribe a shared machine otherwise; ~3 min on
+2 shared cores: 31x7 20 s, 79x7 50 s, the randomized table 105 s).  `tests/test_task_constants.py`
+recomputes its cheap parts and compares.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ def main() -> None:
         "bearing": NOMINAL_BEARING.as_dict(),
         "foil_stiffness": NOMINAL_BEARING.foil_stiffness,
         "damping_range": [D_MIN, D_MAX],
-        "command": "python experiments/env_task_constants.py "
+        "command": "python -m gfb_experiments.env_task_constants "
         + " ".join(f"--grids {args.grids} --default-grid {args.default_grid}".split()),
         "nominal": {},
     }

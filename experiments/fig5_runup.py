@@ -155,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
             from gfb_env.analysis import optimal_foil_damping
 
             dw = optimal_foil_damping(GFBModel("viscoelastic").foil_stiffness)
-            source = "optimum of results/fig4_stability_map"
+            source = "optimum of the stability map (gfb_env/data/stability_map.csv)"
         except (FileNotFoundError, ValueError):
             dw, source = 4.0, "default 4.0 (no stability map)"
     grid, tau_ramp, window, chunk = (

@@ -6,18 +6,15 @@ Layers (each uses only those above it): :mod:`gfb_env.params` -> :mod:`gfb_env.m
 vibrations in gas foil bearing rotor systems".
 """
 
-import os
-
-# Single-threaded BLAS by default: our matrices are small (n ~ 500) and OpenBLAS's spinning threads
-# collapse when the cores are shared (a 472 x 472 eig took 10 s with 2 threads on a loaded 2-core
-# machine, 0.2 s with 1).  Only effective when gfb_env is imported before numpy; the Makefile exports
-# the same variables.  Set them yourself to override.
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+# No thread settings here: a library does not change its host's os.environ.  Our matrices are small
+# (n ~ 500) and OpenBLAS's spinning threads collapse on shared cores (a 472 x 472 eig took 10 s with 2
+# threads on a loaded 2-core machine, 0.2 s with 1), so the entry points set single-threaded BLAS
+# defaults (gfb_env._threads): the `gfb` CLI and `python -m gfb_agents.train` for the worker processes
+# they start, gfb_experiments before numpy loads; the Makefile exports the same variables.
 
 # Registers gfb_env/RunUp-v0, gfb_env/RunUpRandomized-v0, gfb_env/WhirlRecovery-v0 with gymnasium.
-import gfb_env.envs  # noqa: E402, F401
-from gfb_env.integrator import (  # noqa: E402
+import gfb_env.envs  # noqa: F401
+from gfb_env.integrator import (
     AdvanceResult,
     EquilibriumError,
     IntegrationError,
@@ -26,8 +23,8 @@ from gfb_env.integrator import (  # noqa: E402
     TrapezoidalIntegrator,
     find_equilibrium,
 )
-from gfb_env.model import GFBModel, Grid, StateLayout, Structure  # noqa: E402
-from gfb_env.params import BearingParameters, NondimensionalParameters  # noqa: E402
+from gfb_env.model import GFBModel, Grid, StateLayout, Structure
+from gfb_env.params import BearingParameters, NondimensionalParameters
 
 __version__ = "0.1.0"
 

@@ -28,6 +28,7 @@ from gfb_env._cli_common import (
     model_from_args,
     positive,
 )
+from gfb_env._threads import set_thread_defaults
 from gfb_env.integrator import TrapezoidalIntegrator, find_equilibrium
 from gfb_env.model import GFBModel
 from gfb_env.params import BearingParameters
@@ -329,6 +330,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    set_thread_defaults()  # for the sweep workers this command may start (see gfb_env._threads)
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

@@ -210,7 +210,7 @@ def test_train_cli_rejects_bad_arguments(capsys, tmp_path, argv, fragment):
 def test_benchmark_quick_writes_table(tmp_path):
     from gfb_experiments.benchmark_agents import COLUMNS, main
 
-    assert main(["--quick", "--out", str(tmp_path), "--policies", str(tmp_path / "none")]) == 0
+    assert main(["--quick", "--out", str(tmp_path), "--no-learned"]) == 0
     rows = list(csv.DictReader((tmp_path / "benchmark_agents.csv").open()))
     assert rows
     required = {
@@ -233,7 +233,7 @@ def test_benchmark_quick_writes_table(tmp_path):
     assert (tmp_path / "benchmark_agents_paths.png").stat().st_size > 10_000
     # --merge replaces the rows of the agents it re-runs and keeps the others
     n = len(rows)
-    args = ["--quick", "--out", str(tmp_path), "--policies", str(tmp_path / "none"), "--merge"]
+    args = ["--quick", "--out", str(tmp_path), "--no-learned", "--merge"]
     assert main(args + ["--tasks", "gfb_env/RunUp-v0", "--agents", "map_informed"]) == 0
     rows2 = list(csv.DictReader((tmp_path / "benchmark_agents.csv").open()))
     assert len(rows2) == n

@@ -7,9 +7,11 @@
   stiffnesses.  For ``Lambda < Lambda_fold`` only the equilibrium is stable, for
   ``Lambda_fold < Lambda < Lambda_c`` both the equilibrium and the whirl (bistable), above ``Lambda_c``
   only the whirl.
-* :func:`load_hysteresis_map` / :func:`optimal_foil_damping` read the committed results
-  (``results/hysteresis_map/hysteresis_map.csv``, ``results/fig4_stability_map/stability_map.csv``) for
-  the environments and baselines.
+* :func:`load_hysteresis_map` / :func:`optimal_foil_damping` read the maps shipped with the package
+  (``gfb_env/data/hysteresis_map.csv``, ``gfb_env/data/stability_map.csv``: copies of the committed
+  ``results/hysteresis_map/hysteresis_map.csv`` and ``results/fig4_stability_map/stability_map.csv``,
+  which ``tests/test_package_data.py`` keeps identical) or an explicit ``path``.  Library code never
+  reads ``results/`` at run time: an installed package has no such folder.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from gfb_env.params import check_positive
 from gfb_env.sweeps import run_sweep
 
 __all__ = [
-    "RESULTS_DIR",
+    "MAPS_DATA_DIR",
     "StabilityMap",
     "HysteresisMap",
     "critical_point_task",
@@ -44,9 +46,10 @@ __all__ = [
     "optimal_foil_damping",
 ]
 
-RESULTS_DIR = Path(os.environ.get("GFB_RESULTS_DIR", Path(__file__).resolve().parents[2] / "results"))
-STABILITY_MAP_CSV = "fig4_stability_map/stability_map.csv"
-HYSTERESIS_MAP_CSV = "hysteresis_map/hysteresis_map.csv"
+#: Package data: the maps the agents and scripts read by default (see the module docstring).
+MAPS_DATA_DIR = Path(__file__).resolve().parents[1] / "data"
+STABILITY_MAP_CSV = "stability_map.csv"
+HYSTERESIS_MAP_CSV = "hysteresis_map.csv"
 
 
 def _cell(v):
@@ -264,12 +267,15 @@ def plot_stability_map(smap: StabilityMap, path: str | os.PathLike) -> None:
 def load_stability_map(path: str | os.PathLike | None = None) -> dict[str, np.ndarray]:
     """Read ``stability_map.csv``: arrays ``structure``, ``foil_stiffness``, ``foil_damping``,
     ``critical_bearing_number`` (NaN where empty)."""
-    p = Path(path) if path is not None else RESULTS_DIR / STABILITY_MAP_CSV
+    p = Path(path) if path is not None else MAPS_DATA_DIR / STABILITY_MAP_CSV
     if not p.exists():
         raise FileNotFoundError(
-            f"no stability map at {p}; run `python -m gfb_experiments.fig4_stability_map`"
+            f"no stability map at {p}; it is made by `python -m gfb_experiments.fig4_stability_map` "
+            "(results/fig4_stability_map/stability_map.csv, shipped as gfb_env/data/stability_map.csv)"
         )
     rows = list(csv.DictReader(p.open()))
+    if not rows:
+        raise ValueError(f"stability map {p} is empty")
 
     def f(x):
         return float(x) if x not in ("", None) else math.nan
@@ -283,9 +289,9 @@ def load_stability_map(path: str | os.PathLike | None = None) -> dict[str, np.nd
 
 
 def optimal_foil_damping(foil_stiffness: float, path: str | os.PathLike | None = None) -> float:
-    """Optimum damping ``D_W*`` maximising ``Lambda_c`` at ``K_W = foil_stiffness``, from the committed
-    stability map (per-stiffness parabola in ``log D_W``, then linear interpolation in ``log K_W``;
-    clamped to the map's ``K_W`` range)."""
+    """Optimum damping ``D_W*`` maximising ``Lambda_c`` at ``K_W = foil_stiffness``, from the stability
+    map shipped with the package or at ``path`` (per-stiffness parabola in ``log D_W``, then linear
+    interpolation in ``log K_W``; clamped to the map's ``K_W`` range)."""
     k = check_positive("foil_stiffness", foil_stiffness)
     m = load_stability_map(path)
     sel = m["structure"] == "viscoelastic"
@@ -467,10 +473,14 @@ def write_hysteresis_map(rows: list[dict], out_dir: str | os.PathLike) -> Path:
 
 
 def load_hysteresis_map(path: str | os.PathLike | None = None) -> HysteresisMap:
-    """Read ``results/hysteresis_map/hysteresis_map.csv`` (or ``path``) into arrays (NaN where empty)."""
-    p = Path(path) if path is not None else RESULTS_DIR / HYSTERESIS_MAP_CSV
+    """Read the shipped hysteresis map (``gfb_env/data/hysteresis_map.csv``) or ``path`` into arrays
+    (NaN where empty)."""
+    p = Path(path) if path is not None else MAPS_DATA_DIR / HYSTERESIS_MAP_CSV
     if not p.exists():
-        raise FileNotFoundError(f"no hysteresis map at {p}; run `python -m gfb_experiments.hysteresis_map`")
+        raise FileNotFoundError(
+            f"no hysteresis map at {p}; it is made by `python -m gfb_experiments.hysteresis_map` "
+            "(results/hysteresis_map/hysteresis_map.csv, shipped as gfb_env/data/hysteresis_map.csv)"
+        )
     rows = list(csv.DictReader(p.open()))
     if not rows:
         raise ValueError(f"hysteresis map {p} is empty")

@@ -6,11 +6,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import gymnasium as gym
 import numpy as np
 
-from gfb_env.analysis.task_constants import task_constants
-from gfb_env.envs._data import load_task_constants
+from gfb_env.envs._data import nominal_task_constants
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, GFBEnv, StepOutcome, viscoelastic_model
 from gfb_env.envs.config import check_in
 from gfb_env.envs.rewards import RunUpReward
@@ -22,25 +20,9 @@ __all__ = ["RunUpEnv", "RunUpTarget", "nominal_constants"]
 
 
 def nominal_constants(grid: Grid, bearing: BearingParameters) -> dict:
-    """Stability constants of the nominal bearing on ``grid``: ``lambda_best`` (max over D_W of the
-    critical bearing number Lambda_c), ``d_opt``, ``lambda_c_dmin`` and the whirl start state.
-
-    Read from ``data/task_constants.json`` (``experiments/env_task_constants.py``) when the grid and
-    bearing are tabulated, otherwise computed here once (seconds to a minute; constructor only).
-    """
-    table = load_task_constants()
-    entry = table.get("nominal", {}).get(str(grid))
-    if entry is not None and table.get("bearing") == bearing.as_dict():
-        return entry
-    # not tabulated: compute once per process (TEMPORARY helper, to be replaced by gfb_env.analysis)
-    key = (str(grid), tuple(sorted(bearing.as_dict().items())))
-    if key not in _COMPUTED:
-        gym.logger.warn(f"task constants for grid {grid} are not tabulated; computing them (slow, once)")
-        _COMPUTED[key] = task_constants(viscoelastic_model(grid, bearing))
-    return _COMPUTED[key]
-
-
-_COMPUTED: dict = {}
+    """Stability constants of the nominal bearing on ``grid``: see
+    :func:`gfb_env.envs._data.nominal_task_constants` (table, or an explicit warned computation)."""
+    return nominal_task_constants(grid, bearing)
 
 
 @dataclass(frozen=True)

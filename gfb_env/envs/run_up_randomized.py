@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
-from gfb_env.envs._data import load_task_constants
+from gfb_env.envs._data import randomized_task_table
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, viscoelastic_model
 from gfb_env.envs.config import EnvConfig, check_bool, check_in
 from gfb_env.envs.run_up import RunUpEnv, RunUpTarget
@@ -134,12 +134,7 @@ class RunUpRandomizedEnv(RunUpEnv):
         **kwargs,
     ):
         self.observe_parameters = check_bool("observe_parameters", observe_parameters)
-        table = load_task_constants().get("randomized")
-        if table is None:
-            raise RuntimeError(
-                "data/task_constants.json has no randomized table; run experiments/env_task_constants.py"
-            )
-        self.table = BestStableSpeedTable(table)
+        self.table = BestStableSpeedTable(randomized_task_table())
         ranges = {}
         for name, r, (tlo, thi) in (
             ("clearance_range_m", clearance_range_m, self.table.bounds[0]),

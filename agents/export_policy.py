@@ -10,13 +10,13 @@ evaluation, which model) and a ``README.md`` stating the same.  The evaluator
 
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
 from pathlib import Path
 
 from gfb_agents.evaluate import POLICIES_DIR
 from gfb_env import jsonio
+from gfb_env._cli_common import OneLineParser
 
 __all__ = ["export_policy"]
 
@@ -90,9 +90,7 @@ def export_policy(
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(
-        prog="python -m gfb_agents.export_policy", description=__doc__.splitlines()[0]
-    )
+    ap = OneLineParser(prog="python -m gfb_agents.export_policy", description=__doc__.splitlines()[0])
     ap.add_argument("run_dir")
     ap.add_argument("name", help="directory name under agents/policies, e.g. WhirlRecovery_sac")
     ap.add_argument("--which", choices=("final", "best"), default="final")

@@ -12,7 +12,6 @@ written with the load average to ``results/bench_env/summary.json``.  Run::
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 from pathlib import Path
@@ -22,6 +21,7 @@ import numpy as np
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_env import jsonio
+from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.envs import ENV_IDS
 
 
@@ -54,11 +54,16 @@ def _episode(env: gym.Env, policy, seed: int, max_steps: int | None = None) -> d
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = OneLineParser(description=__doc__.split("\n")[0])
     ap.add_argument("--steps", type=int, default=40, help="control steps per random-policy run")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, default=Path("results/bench_env"), help="output folder")
     args = ap.parse_args()
+    if args.out is not None:  # before any work: an unwritable --out fails now
+        try:
+            check_output_dir(str(args.out), "--out")
+        except ValueError as exc:
+            ap.error(str(exc))
     results: dict = {"single_core": {}, "vector_2_cores": {}}
 
     rng = np.random.default_rng(args.seed)

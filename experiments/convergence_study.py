@@ -19,6 +19,7 @@ import numpy as np
 from tqdm import tqdm
 
 from gfb_env import jsonio
+from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.integrator import TrapezoidalIntegrator, find_equilibrium
 from gfb_env.model import GFBModel
 
@@ -52,10 +53,15 @@ def amplitude(m: GFBModel, s0: np.ndarray, tol: float, tau_end: float, window: f
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="coarse grid and a short run (for tests)")
     p.add_argument("--out", default="results/convergence_study")
     a = p.parse_args(argv)
+    if a.out is not None:  # before any work: an unwritable --out fails now
+        try:
+            check_output_dir(str(a.out), "--out")
+        except ValueError as exc:
+            p.error(str(exc))
     grid, tau_end, window = ("31x5", 800.0, 200.0) if a.quick else ("79x7", 3000.0, 500.0)
     tols = [1e-2, 1e-3] if a.quick else [3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5]
     m, s0 = benchmark_case(grid)

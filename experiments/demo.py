@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 from gfb_env import jsonio
+from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.cli import equilibrium_summary
 from gfb_env.cli import main as gfb_main
 from gfb_env.integrator import find_equilibrium
@@ -134,10 +135,15 @@ def runup_stage(out: Path, seed: int = 0) -> dict:
 
 
 def cli() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default="results/demo", help="output directory (default: %(default)s)")
     p.add_argument("--duration", type=float, default=2000.0, help="tau of the transient run (default: 2000)")
     a = p.parse_args()
+    if a.out is not None:  # before any work: an unwritable --out fails now
+        try:
+            check_output_dir(str(a.out), "--out")
+        except ValueError as exc:
+            p.error(str(exc))
     run(Path(a.out), a.duration)
 
 

@@ -11,10 +11,10 @@ integrator defaults.  One core; timings on a shared machine.  Run::
 
 from __future__ import annotations
 
-import argparse
 import time
 
 from gfb_env import jsonio
+from gfb_env._cli_common import OneLineParser
 from gfb_env.analysis.task_constants import critical_bearing_number_or_bound
 from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.integrator import TrapezoidalIntegrator, find_equilibrium
@@ -51,7 +51,7 @@ def measure(grid: str) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = OneLineParser(description=__doc__.split("\n")[0])
     ap.add_argument("--grids", default="79x7,41x7,31x7,25x7,21x7,41x5,31x5")
     args = ap.parse_args()
     rows = [measure(g) for g in args.grids.split(",")]

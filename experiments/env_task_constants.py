@@ -22,7 +22,6 @@ recomputes its cheap parts and compares.
 
 from __future__ import annotations
 
-import argparse
 import itertools
 import json
 import time
@@ -30,6 +29,7 @@ import time
 import numpy as np
 
 from gfb_env import jsonio
+from gfb_env._cli_common import OneLineParser
 from gfb_env.analysis.maps import optimum_from_curve
 from gfb_env.analysis.task_constants import (
     WHIRL_FACTOR,
@@ -45,7 +45,7 @@ DAMPINGS = np.geomspace(D_MIN, D_MAX, 13)
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = OneLineParser(description=__doc__.split("\n")[0])
     ap.add_argument("--grids", default="31x7,79x7")
     ap.add_argument("--default-grid", default="31x7")
     ap.add_argument("--no-table", action="store_true")

@@ -13,7 +13,6 @@ Writes ``stability_map.csv`` (one row per configuration), ``optimum_damping.csv`
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from pathlib import Path
@@ -21,11 +20,12 @@ from pathlib import Path
 import numpy as np
 
 from gfb_env import jsonio
+from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.analysis.maps import compute_stability_map, write_stability_map
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="2 x 2 map on a 33x7 grid (for tests)")
     ap.add_argument("--out", default=None, help="output directory (default results/fig4_stability_map)")
     ap.add_argument("--n-jobs", type=int, default=1, help="parallel workers (default 1)")
@@ -35,6 +35,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n-stiffness", type=int, default=8, help="K_W points in [0.1, 10] (full mode)")
     ap.add_argument("--n-damping", type=int, default=10, help="D_W points in [0.1, 100] (full mode)")
     a = ap.parse_args(argv)
+    if a.out is not None:  # before any work: an unwritable --out fails now
+        try:
+            check_output_dir(str(a.out), "--out")
+        except ValueError as exc:
+            ap.error(str(exc))
     out = Path(a.out or ("results/fig4_stability_map_quick" if a.quick else "results/fig4_stability_map"))
     if a.quick:
         kws, dws, grid = np.array([0.5, 2.0]), np.array([1.0, 4.0]), "33x7"

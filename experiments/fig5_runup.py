@@ -12,7 +12,6 @@ windows of 100 tau) of xi, eta and the midplane pressure P(phi=0, Z=0).  Time sc
 
 from __future__ import annotations
 
-import argparse
 import csv
 import time
 from pathlib import Path
@@ -20,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from gfb_env import GFBModel, Grid, TrapezoidalIntegrator, find_equilibrium, jsonio
+from gfb_env._cli_common import OneLineParser, check_output_dir
 
 
 def run_case(
@@ -140,12 +140,17 @@ def plot(results: list[dict], path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="33x7 grid, 2 x 1500 tau (for tests)")
     ap.add_argument("--out", default=None, help="output directory (default results/fig5_runup)")
     ap.add_argument("--n-jobs", type=int, default=1, help="run the two cases in parallel (1 or 2)")
     ap.add_argument("--foil-damping", type=float, default=None, help="D_W of the viscoelastic run")
     a = ap.parse_args(argv)
+    if a.out is not None:  # before any work: an unwritable --out fails now
+        try:
+            check_output_dir(str(a.out), "--out")
+        except ValueError as exc:
+            ap.error(str(exc))
     out = Path(a.out or ("results/fig5_runup_quick" if a.quick else "results/fig5_runup"))
     out.mkdir(parents=True, exist_ok=True)
     dw = a.foil_damping

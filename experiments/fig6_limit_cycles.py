@@ -12,7 +12,6 @@ settles (:func:`gfb_env.analysis.settle_whirl`).  The final orbit is also conver
 
 from __future__ import annotations
 
-import argparse
 import csv
 import math
 import time
@@ -22,6 +21,7 @@ import numpy as np
 from tqdm import tqdm
 
 from gfb_env import GFBModel, Grid, jsonio
+from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.analysis import ShootingError, periodic_orbit_from_simulation, settle_whirl
 
 LAMBDA = 0.6
@@ -29,10 +29,15 @@ K_W = 1.0
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="33x7 grid, two dampings, no shooting (for tests)")
     ap.add_argument("--out", default=None, help="output directory (default results/fig6_limit_cycles)")
     a = ap.parse_args(argv)
+    if a.out is not None:  # before any work: an unwritable --out fails now
+        try:
+            check_output_dir(str(a.out), "--out")
+        except ValueError as exc:
+            ap.error(str(exc))
     out = Path(a.out or ("results/fig6_limit_cycles_quick" if a.quick else "results/fig6_limit_cycles"))
     out.mkdir(parents=True, exist_ok=True)
     grid = Grid.parse("33x7" if a.quick else "79x7")

@@ -10,7 +10,6 @@ then records ``tail`` tau more at dtau = 0.25; the Hann-windowed amplitude spect
 
 from __future__ import annotations
 
-import argparse
 import csv
 import math
 import time
@@ -20,6 +19,7 @@ import numpy as np
 from tqdm import tqdm
 
 from gfb_env import GFBModel, Grid, TrapezoidalIntegrator, jsonio
+from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.analysis import amplitude_spectrum, dominant_frequency, settle_whirl
 
 LAMBDA = 0.6
@@ -28,10 +28,15 @@ DT = 0.25
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="33x7 grid, D_W = 4, 16, short (tests)")
     ap.add_argument("--out", default=None, help="output directory (default results/fig7_fft)")
     a = ap.parse_args(argv)
+    if a.out is not None:  # before any work: an unwritable --out fails now
+        try:
+            check_output_dir(str(a.out), "--out")
+        except ValueError as exc:
+            ap.error(str(exc))
     out = Path(a.out or ("results/fig7_fft_quick" if a.quick else "results/fig7_fft"))
     out.mkdir(parents=True, exist_ok=True)
     grid = Grid.parse("33x7" if a.quick else "79x7")

@@ -13,6 +13,7 @@ import argparse
 import csv
 from pathlib import Path
 
+from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.integrator import find_equilibrium
 from gfb_env.model import GFBModel, Grid
 
@@ -20,9 +21,14 @@ GRIDS = [(79, 7), (79, 9), (79, 13), (79, 25), (157, 7), (157, 13), (157, 25), (
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default="results/grid_convergence")
     a = p.parse_args(argv)
+    if a.out is not None:  # before any work: an unwritable --out fails now
+        try:
+            check_output_dir(str(a.out), "--out")
+        except ValueError as exc:
+            p.error(str(exc))
     rows = []
     for structure in ("rigid", "viscoelastic"):
         eps = {}

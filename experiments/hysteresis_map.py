@@ -16,7 +16,6 @@ coast-down estimate as a cross-check.  The environments read ``hysteresis_map.cs
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
 from pathlib import Path
@@ -24,11 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from gfb_env import BearingParameters, jsonio
+from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.analysis import compute_hysteresis_map, write_hysteresis_map
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="K_W=1, D_W=4 on a 33x7 grid (tests)")
     ap.add_argument(
         "--tasks",
@@ -40,6 +40,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scheduler", default=None, help="Dask scheduler address")
     ap.add_argument("--n-steps", type=int, default=300, help="trapezoidal steps per period in the shooting")
     a = ap.parse_args(argv)
+    if a.out is not None:  # before any work: an unwritable --out fails now
+        try:
+            check_output_dir(str(a.out), "--out")
+        except ValueError as exc:
+            ap.error(str(exc))
     if a.quick and a.tasks:
         ap.error("--quick and --tasks exclude each other")
     default_out = "results/hysteresis_map" + ("_quick" if a.quick else "_tasks" if a.tasks else "")

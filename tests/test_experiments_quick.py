@@ -74,3 +74,32 @@ def test_convergence_study_quick(tmp_path):
     assert [r["status"] for r in rows] == ["done", "done"]
     assert float(rows[0]["relative_amplitude_error"]) < 2e-3  # rtol 1e-2 vs 1e-3 on the rigid 31x5 cycle
     assert (tmp_path / "convergence.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize(
+    "module",
+    [
+        "fig4_stability_map",
+        "fig5_runup",
+        "fig6_limit_cycles",
+        "fig7_fft",
+        "convergence_study",
+        "grid_convergence",
+        "hysteresis_map",
+    ],
+)
+def test_experiment_refuses_unwritable_out_at_once(module, tmp_path, capsys):
+    """An output folder that cannot be made is one line and exit 2 before any computation."""
+    import time
+
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("x")
+    main = importlib.import_module(f"gfb_experiments.{module}").main
+    t0 = time.perf_counter()
+    with pytest.raises(SystemExit) as exc:
+        main(["--out", str(blocker / "out")])
+    out, err = capsys.readouterr()
+    assert exc.value.code == 2
+    assert len(err.strip().splitlines()) == 1 and "--out" in err and "is a file" in err, err
+    assert time.perf_counter() - t0 < 5.0
+    assert not (blocker.parent / "out").exists()

@@ -233,28 +233,30 @@ def _predict(x, s, sprev, sprev2, f, hstep, hp, hp2, history):
 def _newton(w, s, f, hstep, h_fact, lam_b, dw_b, kargs, jac, lu, opt, stats):
     """Modified Newton iteration for the trapezoidal step from the predicted ``w.x``; on success
     ``w.fnew = k(x)`` (checked admissible and finite).  Returns (converged, iterations)."""
+    # arrays out of the tuples once (each extraction is a reference count pair in numba)
     ip, fp, sn, cs = kargs
-    x = w.x
+    x, fx, fnew, r, dx, zb, H, Hd = w.x, w.fx, w.fnew, w.r, w.dx, w.zb, w.H, w.Hd
+    rtol, atol, newton_tol = opt.rtol, opt.atol, opt.newton_tol
     n = x.shape[0]
     converged = False
     dprev = 0.0
     iters = 0
     for it in range(opt.max_newton_iterations):
         iters = it + 1
-        K.rhs(x, lam_b, dw_b, ip, fp, sn, cs, w.fx, w.H, w.Hd)
+        K.rhs(x, lam_b, dw_b, ip, fp, sn, cs, fx, H, Hd)
         stats[_NRHS] += 1
-        if not w.H.min() > 0.0:  # intermediate iterates may dip below P = 0, never below H = 0
+        if not H.min() > 0.0:  # intermediate iterates may dip below P = 0, never below H = 0
             stats[_NBAD_H] += 1
             break
         for i in range(n):
-            w.r[i] = -(x[i] - s[i] - 0.5 * hstep * (f[i] + w.fx[i]))
-        _solve(jac, lu, h_fact, w.r, w.dx, w.zb)
+            r[i] = -(x[i] - s[i] - 0.5 * hstep * (f[i] + fx[i]))
+        _solve(jac, lu, h_fact, r, dx, zb)
         for i in range(n):
-            x[i] += w.dx[i]
-        dn = _wnorm(w.dx, x, s, opt.rtol, opt.atol)
+            x[i] += dx[i]
+        dn = _wnorm(dx, x, s, rtol, atol)
         if not dn < 1e30:
             break
-        if dn <= opt.newton_tol:
+        if dn <= newton_tol:
             converged = True
             break
         if it > 0:
@@ -262,18 +264,18 @@ def _newton(w, s, f, hstep, h_fact, lam_b, dw_b, kargs, jac, lu, opt, stats):
             if rate >= 0.9:
                 stats[_NDIVERGED] += 1
                 break
-            if rate / (1.0 - rate) * dn <= opt.newton_tol:
+            if rate / (1.0 - rate) * dn <= newton_tol:
                 converged = True
                 break
         dprev = dn
     if converged:
-        mn = K.rhs(x, lam_b, dw_b, ip, fp, sn, cs, w.fnew, w.H, w.Hd)
+        mn = K.rhs(x, lam_b, dw_b, ip, fp, sn, cs, fnew, H, Hd)
         stats[_NRHS] += 1
         if not mn > 0.0:
             converged = False
         else:
             for i in range(n):
-                if not abs(w.fnew[i]) < 1e300:
+                if not abs(fnew[i]) < 1e300:
                     converged = False
                     break
     return converged, iters
@@ -284,8 +286,7 @@ def _error_norm(w, s, f, fprev, hstep, hp, history, h_fact, jac, lu, opt):
     """Weighted max-norm of the local error ``-h^3/12 s'''`` (s''' from the divided difference of k),
     filtered through ``(I - h/2 J)^-1`` when the raw estimate rejects the step."""
     n = s.shape[0]
-    r = w.r
-    fnew = w.fnew
+    r, fnew, x, dx = w.r, w.fnew, w.x, w.dx
     if history >= 1:
         c3 = hstep**3 / 12.0 * 2.0 / (hstep + hp)
         for i in range(n):
@@ -294,10 +295,10 @@ def _error_norm(w, s, f, fprev, hstep, hp, history, h_fact, jac, lu, opt):
         c3 = hstep / 6.0
         for i in range(n):
             r[i] = c3 * (fnew[i] - f[i])
-    err = _wnorm(r, w.x, s, opt.rtol, opt.atol)
+    err = _wnorm(r, x, s, opt.rtol, opt.atol)
     if err > 1.0:  # only a rejected raw estimate is worth the filtering solve
-        _solve(jac, lu, h_fact, r, w.dx, w.zb)
-        err = _wnorm(w.dx, w.x, s, opt.rtol, opt.atol)
+        _solve(jac, lu, h_fact, r, dx, w.zb)
+        err = _wnorm(dx, x, s, opt.rtol, opt.atol)
     return err
 
 

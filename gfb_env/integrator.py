@@ -159,20 +159,10 @@ class _Recording(NamedTuple):
     buffer: np.ndarray
 
 
-class _Workspace(NamedTuple):
-    x: np.ndarray  # Newton iterate (the new state once accepted)
-    fx: np.ndarray  # k(x) during the iteration
-    fnew: np.ndarray  # k at the accepted x
-    r: np.ndarray  # residual, then the local error estimate
-    dx: np.ndarray  # Newton update, then the filtered error
-    ftmp: np.ndarray  # k at s_n (by-product of the Jacobian)
-    zb: np.ndarray  # solver workspace
-    H: np.ndarray  # film thickness per column of the last k evaluation
-    Hd: np.ndarray  # its time derivative
-
-
 # ------------------------------------------------------------------------------------------------
-# Stages of one step (inlined into _advance)
+# Stages of one step, inlined into _advance.  They take arrays one by one, not in their groups: in
+# numba every extraction of an array from a tuple is a reference-count pair, and one per stage and step
+# cost 3 % of a step (``python -m gfb_experiments.bench_integrator``).  Scalars travel in tuples freely.
 @njit(cache=True)
 def _wnorm(dx, x, y, rtol, atol):
     mx = 0.0
@@ -187,24 +177,6 @@ def _wnorm(dx, x, y, rtol, atol):
 @njit(inline="always")
 def _ramp(a0, a1, theta):
     return a0 + (a1 - a0) * theta
-
-
-@njit(inline="always")
-def _solve(jac, lu, h_fact, rhs_vec, out, zb):
-    """``out = (I - h_fact/2 J)^-1 rhs_vec`` with the current factors."""
-    K.solve_system(
-        0.5 * h_fact, jac.Am, jac.Ap, jac.Rr, lu.Dlu, lu.Dpiv, lu.Uhat, lu.Y, lu.Slu, lu.Spiv, lu.n_rows,
-        rhs_vec, out, zb, lu.sparse, lu.size_tag,
-    )  # fmt: skip
-
-
-@njit(inline="always")
-def _factor(jac, lu, hstep):
-    """Factor ``I - hstep/2 J``; False if a pivot vanishes."""
-    return K.factor_system(
-        0.5 * hstep, jac.Ad, jac.Ap, jac.Am, jac.Er, jac.Rr, jac.Srr,
-        lu.Dlu, lu.Dpiv, lu.Uhat, lu.Y, lu.Slu, lu.Spiv, lu.sparse, lu.size_tag,
-    )  # fmt: skip
 
 
 @njit(inline="always")
@@ -230,13 +202,16 @@ def _predict(x, s, sprev, sprev2, f, hstep, hp, hp2, history):
 
 
 @njit(inline="always")
-def _newton(w, s, f, hstep, h_fact, lam_b, dw_b, kargs, jac, lu, opt, stats):
-    """Modified Newton iteration for the trapezoidal step from the predicted ``w.x``; on success
-    ``w.fnew = k(x)`` (checked admissible and finite).  Returns (converged, iterations)."""
-    # arrays out of the tuples once (each extraction is a reference count pair in numba)
-    ip, fp, sn, cs = kargs
-    x, fx, fnew, r, dx, zb, H, Hd = w.x, w.fx, w.fnew, w.r, w.dx, w.zb, w.H, w.Hd
-    rtol, atol, newton_tol = opt.rtol, opt.atol, opt.newton_tol
+def _newton(
+    x, fx, fnew, r, dx, zb, H, Hd,  # workspace: x holds the prediction, then the iterate
+    s, f, hstep, h_fact, lam_b, dw_b,  # the step from (s, f) with the factors of I - h_fact/2 J
+    ip, fp, sn, cs,  # the model (GFBModel.kernel_args)
+    Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, lu_static,  # the factorisation
+    opt, stats,
+):  # fmt: skip
+    """Modified Newton iteration for the trapezoidal step; on success ``fnew = k(x)`` (checked
+    admissible and finite).  Returns (converged, iterations)."""
+    n_rows, sparse, size_tag = lu_static
     n = x.shape[0]
     converged = False
     dprev = 0.0
@@ -250,13 +225,15 @@ def _newton(w, s, f, hstep, h_fact, lam_b, dw_b, kargs, jac, lu, opt, stats):
             break
         for i in range(n):
             r[i] = -(x[i] - s[i] - 0.5 * hstep * (f[i] + fx[i]))
-        _solve(jac, lu, h_fact, r, dx, zb)
+        K.solve_system(
+            0.5 * h_fact, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, n_rows, r, dx, zb, sparse, size_tag
+        )  # fmt: skip
         for i in range(n):
             x[i] += dx[i]
-        dn = _wnorm(dx, x, s, rtol, atol)
+        dn = _wnorm(dx, x, s, opt.rtol, opt.atol)
         if not dn < 1e30:
             break
-        if dn <= newton_tol:
+        if dn <= opt.newton_tol:
             converged = True
             break
         if it > 0:
@@ -264,7 +241,7 @@ def _newton(w, s, f, hstep, h_fact, lam_b, dw_b, kargs, jac, lu, opt, stats):
             if rate >= 0.9:
                 stats[_NDIVERGED] += 1
                 break
-            if rate / (1.0 - rate) * dn <= newton_tol:
+            if rate / (1.0 - rate) * dn <= opt.newton_tol:
                 converged = True
                 break
         dprev = dn
@@ -282,11 +259,15 @@ def _newton(w, s, f, hstep, h_fact, lam_b, dw_b, kargs, jac, lu, opt, stats):
 
 
 @njit(inline="always")
-def _error_norm(w, s, f, fprev, hstep, hp, history, h_fact, jac, lu, opt):
+def _error_norm(
+    r, dx, zb, x, fnew,  # workspace, the accepted iterate x and fnew = k(x)
+    s, f, fprev, hstep, hp, history, h_fact,
+    Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, lu_static,  # the factorisation
+    opt,
+):  # fmt: skip
     """Weighted max-norm of the local error ``-h^3/12 s'''`` (s''' from the divided difference of k),
     filtered through ``(I - h/2 J)^-1`` when the raw estimate rejects the step."""
     n = s.shape[0]
-    r, fnew, x, dx = w.r, w.fnew, w.x, w.dx
     if history >= 1:
         c3 = hstep**3 / 12.0 * 2.0 / (hstep + hp)
         for i in range(n):
@@ -297,16 +278,20 @@ def _error_norm(w, s, f, fprev, hstep, hp, history, h_fact, jac, lu, opt):
             r[i] = c3 * (fnew[i] - f[i])
     err = _wnorm(r, x, s, opt.rtol, opt.atol)
     if err > 1.0:  # only a rejected raw estimate is worth the filtering solve
-        _solve(jac, lu, h_fact, r, dx, w.zb)
+        n_rows, sparse, size_tag = lu_static
+        K.solve_system(
+            0.5 * h_fact, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, n_rows, r, dx, zb, sparse, size_tag
+        )  # fmt: skip
         err = _wnorm(dx, x, s, opt.rtol, opt.atol)
     return err
 
 
 @njit(inline="always")
-def _record_dense(rec, rec_n, rec_next, t_old, t, eps_t, hstep, s, f, x, fnew, hmin_old, hmin_new):
-    """Cubic Hermite samples at the recording times in (t_old, t]; returns the new (count, next time)."""
-    buf = rec.buffer
-    idx = rec.indices
+def _record_dense(
+    buf, idx, interval, rec_n, rec_next, t_old, t, eps_t, hstep, s, f, x, fnew, hmin_old, hmin_new
+):
+    """Cubic Hermite samples at the recording times in (t_old, t] into ``buf`` (rows ``[tau, s[idx]...,
+    min H]``, min H linear in time); returns the new (count, next time)."""
     ncols = idx.shape[0]
     while rec_n < buf.shape[0] and rec_next <= t + eps_t:
         th = (rec_next - t_old) / hstep
@@ -320,7 +305,7 @@ def _record_dense(rec, rec_n, rec_next, t_old, t, eps_t, hstep, s, f, x, fnew, h
             buf[rec_n, 1 + q] = h00 * s[k] + h10 * hstep * f[k] + h01 * x[k] + h11 * hstep * fnew[k]
         buf[rec_n, 1 + ncols] = hmin_old + th * (hmin_new - hmin_old)
         rec_n += 1
-        rec_next += rec.interval
+        rec_next += interval
     return rec_n, rec_next
 
 
@@ -380,18 +365,32 @@ def _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats, ext):
     """Integrate to ``schedule[0]`` (see the module docstring's state machine).
 
     y = (s, f, fprev, sprev, sprev2), updated in place; clock = (tau, step, previous_step,
-    previous_step2, history); schedule = (tau_end, Lambda_0, Lambda_1, D_W0, D_W1).  Returns
-    (status code, clock at the end).
+    previous_step2, history); schedule = (tau_end, Lambda_0, Lambda_1, D_W0, D_W1); kargs: the model's
+    :meth:`~gfb_env.model.GFBModel.kernel_args`; jac: :class:`_Jacobian`; lu: :class:`_Factorization`;
+    opt: :class:`_Options`; rec: :class:`_Recording`; stats, ext: counters and extremes (in place).
+    Returns (status code, clock at the end).
     """
+    # the groups' arrays into locals once (see "Stages of one step")
     s, f, fprev, sprev, sprev2 = y
     t, h, hp, hp2, history = clock
     t_end, lam0, lam1, dw0, dw1 = schedule
+    ip, fp, sn, cs = kargs
+    Ad, Ap, Am, Er, Rr, Srr = jac
+    Dlu, Dpiv, Uhat, Y, Slu, Spiv, n_rows, sparse, size_tag = lu
+    lu_static = (n_rows, sparse, size_tag)
+    rec_idx, rec_dt, rec_next, rec_buf = rec
+    # workspace
     n = s.shape[0]
-    nc = jac.Ad.shape[0]
-    w = _Workspace(
-        np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n),
-        np.empty((nc, jac.Ad.shape[1])), np.empty(nc), np.empty(nc),
-    )  # fmt: skip
+    nc = Ad.shape[0]
+    x = np.empty(n)  # Newton iterate (the new state once accepted)
+    fx = np.empty(n)  # k(x) during the iteration
+    fnew = np.empty(n)  # k at the accepted x
+    r = np.empty(n)  # residual, then the local error estimate
+    dx = np.empty(n)  # Newton update, then the filtered error
+    ftmp = np.empty(n)  # k at s_n (by-product of the Jacobian)
+    zb = np.empty((nc, Ad.shape[1]))  # solver workspace
+    H = np.empty(nc)  # film thickness per column at the last k evaluation
+    Hd = np.empty(nc)  # its time derivative
     t_start = t
     span = t_end - t_start
     if span <= 0.0:
@@ -403,10 +402,8 @@ def _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats, ext):
     h_fact = -1.0
     eps_t = 1e-12 * max(1.0, abs(t_end))
     rec_n = 0
-    rec_next = rec.first_tau
-    ip, fp, sn, cs = kargs
-    K.film_thickness(s, ip, fp, sn, cs, w.H)
-    hmin_old = w.H.min()
+    K.film_thickness(s, ip, fp, sn, cs, H)
+    hmin_old = H.min()
     status = _DONE
     while True:
         if t >= t_end - eps_t:
@@ -426,10 +423,7 @@ def _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats, ext):
         if not jac_valid:
             lam_a = _ramp(lam0, lam1, th0)
             dw_a = _ramp(dw0, dw1, th0)
-            K.jacobian_blocks(
-                s, lam_a, dw_a, ip, fp, sn, cs, w.ftmp, w.H, w.Hd,
-                jac.Ad, jac.Ap, jac.Am, jac.Er, jac.Rr, jac.Srr,
-            )  # fmt: skip
+            K.jacobian_blocks(s, lam_a, dw_a, ip, fp, sn, cs, ftmp, H, Hd, Ad, Ap, Am, Er, Rr, Srr)
             stats[_NJAC] += 1
             jac_valid = True
             jac_fresh = True
@@ -437,7 +431,9 @@ def _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats, ext):
         ratio = opt.factorization_ratio
         if (not fact_valid) or hstep > h_fact * ratio or hstep < h_fact / ratio:
             stats[_NFACT] += 1
-            if not _factor(jac, lu, hstep):
+            if not K.factor_system(
+                0.5 * hstep, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, sparse, size_tag
+            ):  # fmt: skip
                 fact_valid = False
                 h = _NEWTON_FAILURE_FACTOR * hstep
                 stats[_NREJ_NEWTON] += 1
@@ -447,10 +443,13 @@ def _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats, ext):
                 continue
             fact_valid = True
             h_fact = hstep
-        _predict(w.x, s, sprev, sprev2, f, hstep, hp, hp2, history)
+        _predict(x, s, sprev, sprev2, f, hstep, hp, hp2, history)
         lam_b = _ramp(lam0, lam1, th1)
         dw_b = _ramp(dw0, dw1, th1)
-        converged, iters = _newton(w, s, f, hstep, h_fact, lam_b, dw_b, kargs, jac, lu, opt, stats)
+        converged, iters = _newton(
+            x, fx, fnew, r, dx, zb, H, Hd, s, f, hstep, h_fact, lam_b, dw_b, ip, fp, sn, cs,
+            Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, lu_static, opt, stats,
+        )  # fmt: skip
         if not converged:
             stats[_NREJ_NEWTON] += 1
             if not jac_fresh:
@@ -461,7 +460,10 @@ def _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats, ext):
                     status = _FAILED
                     break
             continue
-        err = _error_norm(w, s, f, fprev, hstep, hp, history, h_fact, jac, lu, opt)
+        err = _error_norm(
+            r, dx, zb, x, fnew, s, f, fprev, hstep, hp, history, h_fact,
+            Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, lu_static, opt,
+        )  # fmt: skip
         if err > 1.0:
             stats[_NREJ_ERR] += 1
             h = _step_after_rejection(hstep, err)
@@ -472,11 +474,12 @@ def _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats, ext):
         # accept
         t_old = t
         t = tn
-        hmin_new = w.H.min()
+        hmin_new = H.min()
         rec_n, rec_next = _record_dense(
-            rec, rec_n, rec_next, t_old, t, eps_t, hstep, s, f, w.x, w.fnew, hmin_old, hmin_new
-        )
-        _shift_history(s, f, fprev, sprev, sprev2, w.x, w.fnew)
+            rec_buf, rec_idx, rec_dt, rec_n, rec_next, t_old, t, eps_t, hstep, s, f, x, fnew,
+            hmin_old, hmin_new,
+        )  # fmt: skip
+        _shift_history(s, f, fprev, sprev, sprev2, x, fnew)
         hp2 = hp
         hp = hstep
         history = min(history + 1, 2)

@@ -19,7 +19,8 @@ import numpy as np
 from tqdm import tqdm
 
 from gfb_env import jsonio
-from gfb_env.integrator import TrapezoidalIntegrator, find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
+from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel
 
 

@@ -17,7 +17,8 @@ import time
 from gfb_env import jsonio
 from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.envs._stability import critical_bearing_number
-from gfb_env.integrator import TrapezoidalIntegrator, find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
+from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel, Grid
 
 

@@ -13,7 +13,7 @@ import argparse
 import csv
 from pathlib import Path
 
-from gfb_env.integrator import find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import GFBModel, Grid
 
 GRIDS = [(79, 7), (79, 9), (79, 13), (79, 25), (157, 7), (157, 13), (157, 25), (313, 25)]

@@ -1,9 +1,9 @@
 """gfb-env: a validated gas foil bearing (GFB) rotor simulator and Gymnasium environments.
 
 Layers (each uses only those above it): :mod:`gfb_env.params` -> :mod:`gfb_env.model` ->
-:mod:`gfb_env.integrator` -> analysis -> envs.  The physics is Leister, Baum & Seemann (2017),
-"On the importance of frictional energy dissipation in the prevention of undesirable self-excited
-vibrations in gas foil bearing rotor systems".
+:mod:`gfb_env.equilibrium` -> :mod:`gfb_env.integrator` -> analysis -> envs.  The physics is Leister,
+Baum & Seemann (2017), "On the importance of frictional energy dissipation in the prevention of
+undesirable self-excited vibrations in gas foil bearing rotor systems".
 """
 
 import os
@@ -17,14 +17,14 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 # Registers gfb_env/RunUp-v0, gfb_env/RunUpRandomized-v0, gfb_env/WhirlRecovery-v0 with gymnasium.
 import gfb_env.envs  # noqa: E402, F401
+from gfb_env.equilibrium import EquilibriumError, find_equilibrium  # noqa: E402
 from gfb_env.integrator import (  # noqa: E402
     AdvanceResult,
-    EquilibriumError,
     IntegrationError,
+    IntegrationStatus,
     TouchdownEvent,
     Trajectory,
     TrapezoidalIntegrator,
-    find_equilibrium,
 )
 from gfb_env.model import GFBModel, Grid, StateLayout, Structure  # noqa: E402
 from gfb_env.params import BearingParameters, NondimensionalParameters  # noqa: E402
@@ -38,6 +38,7 @@ __all__ = [
     "GFBModel",
     "Grid",
     "IntegrationError",
+    "IntegrationStatus",
     "NondimensionalParameters",
     "StateLayout",
     "Structure",

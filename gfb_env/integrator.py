@@ -46,7 +46,9 @@ helper per stage: :func:`_predict`, :func:`_newton`, :func:`_error_norm`, :func:
 :func:`_shift_history`, :func:`_update_extremes`, :func:`_touchdown` and the step-size controller
 (:func:`_step_after_rejection`, :func:`_step_after_acceptance`).  Its arguments come in named groups
 (:class:`_Jacobian`, :class:`_Factorization`, :class:`_Options`, :class:`_Recording`, the model's
-:meth:`~gfb_env.model.GFBModel.kernel_args`); it ends with an :class:`IntegrationStatus`.
+:meth:`~gfb_env.model.GFBModel.kernel_args`), unpacked once per call (the stages take their arrays one
+by one, which keeps the loop as fast as the single function it was); it ends with an
+:class:`IntegrationStatus`.
 """
 
 from __future__ import annotations

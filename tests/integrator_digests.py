@@ -167,12 +167,10 @@ INTEGRATOR_CASES: dict[str, Callable[[], dict[str, str]]] = {
 }
 
 
-def compute(envs: bool = False) -> dict[str, str]:
+def compute(envs: bool = False) -> dict[str, dict[str, str]]:
+    """``{case: {item: digest}}`` for the integrator cases, or for the env cases."""
     cases = {"envs": case_envs} if envs else INTEGRATOR_CASES
-    out: dict[str, str] = {}
-    for f in cases.values():
-        out |= f()
-    return out
+    return {name: f() for name, f in cases.items()}
 
 
 def main(argv: list[str]) -> int:
@@ -184,11 +182,13 @@ def main(argv: list[str]) -> int:
     if argv[0] == "write":
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(got, indent=1, sort_keys=True) + "\n")
-        print(f"wrote {len(got)} digests to {path}")
+        print(f"wrote {sum(map(len, got.values()))} digests to {path}")
         return 0
     want = json.loads(path.read_text())
-    bad = sorted(k for k in want.keys() | got.keys() if want.get(k) != got.get(k))
-    print(f"{len(want)} digests checked, {len(bad)} differ" + "".join(f"\n  {k}" for k in bad))
+    flat = {(c, k): v for c, d in want.items() for k, v in d.items()}
+    flat_got = {(c, k): v for c, d in got.items() for k, v in d.items()}
+    bad = sorted(k for k in flat.keys() | flat_got.keys() if flat.get(k) != flat_got.get(k))
+    print(f"{len(flat)} digests checked, {len(bad)} differ" + "".join(f"\n  {c}: {k}" for c, k in bad))
     return 1 if bad else 0
 
 

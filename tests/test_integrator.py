@@ -3,7 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from gfb_env.integrator import IntegrationError, Trajectory, TrapezoidalIntegrator, find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
+from gfb_env.integrator import IntegrationError, Trajectory, TrapezoidalIntegrator
 from gfb_env.model import GFBModel
 
 

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from gfb_env import _kernels as K
-from gfb_env.integrator import find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import GFBModel, Grid, Structure
 from tests.conftest import random_admissible_state
 

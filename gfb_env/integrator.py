@@ -114,6 +114,7 @@ class IntegrationError(RuntimeError):
 
 # ------------------------------------------------------------------------------------------------
 # Argument groups of the compiled loop (numba passes NamedTuples by value; the arrays are shared).
+# _advance unpacks them by position once per call, so the field order is part of the contract.
 class _Jacobian(NamedTuple):
     """The blocks of J (see :mod:`gfb_env._kernels`), refreshed in place."""
 
@@ -140,6 +141,8 @@ class _Factorization(NamedTuple):
 
 
 class _Options(NamedTuple):
+    """The integrator's settings (see :class:`TrapezoidalIntegrator`) and the call's ``max_steps``."""
+
     rtol: float
     atol: float
     min_step: float

@@ -248,7 +248,7 @@ class GFBModel:
         self.params: NondimensionalParameters = self.bearing.nondimensional(foil_stiffness)
         self.layout = StateLayout(grid, self.structure)
         phi = grid.phi
-        self.kernel_parameters = KernelParameters(
+        self._kernel_parameters = KernelParameters(
             n_columns=grid.n_columns,
             n_rows=grid.n_rows,
             structure_code=self.structure.code,
@@ -262,6 +262,11 @@ class GFBModel:
         self._kernel_args = self.kernel_args()
         self._H = np.empty(grid.n_columns)
         self._Hd = np.empty(grid.n_columns)
+
+    @property
+    def kernel_parameters(self) -> KernelParameters:
+        """The model as the compiled kernels see it (read-only: the packed arguments are cached)."""
+        return self._kernel_parameters
 
     def kernel_args(self, gravity_scale: float = 1.0) -> tuple:
         """The parameter arguments of the compiled kernels (``rhs``, ``jacobian_blocks``,

@@ -23,7 +23,7 @@ from gfb_env import jsonio
 from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.cli import equilibrium_summary
 from gfb_env.cli import main as gfb_main
-from gfb_env.integrator import find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import GFBModel
 from gfb_env.params import BearingParameters
 

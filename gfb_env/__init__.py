@@ -1,9 +1,9 @@
 """gfb-env: a validated gas foil bearing (GFB) rotor simulator and Gymnasium environments.
 
 Layers (each uses only those above it): :mod:`gfb_env.params` -> :mod:`gfb_env.model` ->
-:mod:`gfb_env.integrator` -> analysis -> envs.  The physics is Leister, Baum & Seemann (2017),
-"On the importance of frictional energy dissipation in the prevention of undesirable self-excited
-vibrations in gas foil bearing rotor systems".
+:mod:`gfb_env.equilibrium` -> :mod:`gfb_env.integrator` -> analysis -> envs.  The physics is Leister,
+Baum & Seemann (2017), "On the importance of frictional energy dissipation in the prevention of
+undesirable self-excited vibrations in gas foil bearing rotor systems".
 """
 
 # No thread settings here: a library does not change its host's os.environ.  Our matrices are small
@@ -14,14 +14,14 @@ vibrations in gas foil bearing rotor systems".
 
 # Registers gfb_env/RunUp-v0, gfb_env/RunUpRandomized-v0, gfb_env/WhirlRecovery-v0 with gymnasium.
 import gfb_env.envs  # noqa: F401
+from gfb_env.equilibrium import EquilibriumError, find_equilibrium
 from gfb_env.integrator import (
     AdvanceResult,
-    EquilibriumError,
     IntegrationError,
+    IntegrationStatus,
     TouchdownEvent,
     Trajectory,
     TrapezoidalIntegrator,
-    find_equilibrium,
 )
 from gfb_env.model import GFBModel, Grid, StateLayout, Structure
 from gfb_env.params import BearingParameters, NondimensionalParameters
@@ -35,6 +35,7 @@ __all__ = [
     "GFBModel",
     "Grid",
     "IntegrationError",
+    "IntegrationStatus",
     "NondimensionalParameters",
     "StateLayout",
     "Structure",

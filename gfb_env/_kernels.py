@@ -39,9 +39,28 @@ ELASTIC = 1
 VISCOELASTIC = 2
 
 # Integer and float parameter vectors (kept as arrays so that compiled signatures stay small).
-# ip = [nc, nr, structure]; fp = [foil_stiffness, kappa, mass, gravity]
+# ip = [nc, nr, structure]; fp = [foil_stiffness, kappa, mass, gravity].  Only this module indexes them;
+# the model builds them with :func:`pack_parameters` from its named ``KernelParameters``.
 _NC, _NR, _STRUCT = 0, 1, 2
 _KW, _KAPPA, _MASS, _GRAV = 0, 1, 2, 3
+
+
+def pack_parameters(
+    n_columns: int,
+    n_rows: int,
+    structure_code: int,
+    foil_stiffness: float,
+    kappa: float,
+    mass_parameter: float,
+    gravity_parameter: float,
+    sin_phi: np.ndarray,
+    cos_phi: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(ip, fp, sn, cs)``: the leading parameter arguments of :func:`rhs`, :func:`jacobian_blocks` and
+    :func:`film_thickness`."""
+    ip = np.array([n_columns, n_rows, structure_code], dtype=np.int64)
+    fp = np.array([foil_stiffness, kappa, mass_parameter, gravity_parameter], dtype=np.float64)
+    return ip, fp, sin_phi, cos_phi
 
 
 @njit(cache=True)

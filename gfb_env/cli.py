@@ -29,7 +29,8 @@ from gfb_env._cli_common import (
     positive,
 )
 from gfb_env._threads import set_thread_defaults
-from gfb_env.integrator import TrapezoidalIntegrator, find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
+from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel
 from gfb_env.params import BearingParameters
 

@@ -39,18 +39,31 @@ The state machine (one call of the compiled kernel per :meth:`advance`)::
     factored --(Newton failed, J old)--> jacobian stale (same h)
     factored --(Newton failed, J fresh)--> h /= 4
     factored --(error > 1)--> h reduced (refactored if outside factorization_ratio)
+
+Code layout (after diffrax): the compiled loop :func:`_advance` carries a typed loop state (the arrays
+and clock of :class:`StepperState`, the Jacobian and factorisation flags) and calls one small inlined
+helper per stage: :func:`_predict`, :func:`_newton`, :func:`_error_norm`, :func:`_record_dense`,
+:func:`_shift_history`, :func:`_update_extremes`, :func:`_touchdown` and the step-size controller
+(:func:`_step_after_rejection`, :func:`_step_after_acceptance`).  Its arguments come in named groups
+(:class:`_Jacobian`, :class:`_Factorization`, :class:`_Options`, :class:`_Recording`, the model's
+:meth:`~gfb_env.model.GFBModel.kernel_args`), unpacked once per call (the stages take their arrays one
+by one, which keeps the loop as fast as the single function it was); it ends with an
+:class:`IntegrationStatus`.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import enum
 import math
 from dataclasses import dataclass, field
+from typing import Any, NamedTuple
 
 import numpy as np
-import scipy.sparse.linalg as spla
 from numba import njit
 
 from gfb_env import _kernels as K
+from gfb_env.equilibrium import EquilibriumError, find_equilibrium  # re-exported (moved there)
 from gfb_env.model import GFBModel
 
 __all__ = [
@@ -59,20 +72,39 @@ __all__ = [
     "AdvanceResult",
     "TouchdownEvent",
     "IntegrationError",
+    "IntegrationStatus",
+    "IntegratorStatistics",
+    "StepperState",
     "EquilibriumError",
     "find_equilibrium",
 ]
 
-# status codes of the compiled loop
-_DONE, _TOUCHDOWN, _FAILED, _MAX_STEPS = 0, 1, 2, 3
-_STATUS = {_DONE: "done", _TOUCHDOWN: "touchdown", _FAILED: "failed", _MAX_STEPS: "max_steps"}
 
-# scalar integrator state (float vector): time, next step, previous step, have previous step
-# _HISTORY: how many earlier accepted states the predictor may use (0, 1 or 2)
-_T, _H, _HPREV, _HISTORY, _HPREV2 = 0, 1, 2, 3, 4
-# statistics (int vector)
+class IntegrationStatus(enum.StrEnum):
+    """How one :meth:`TrapezoidalIntegrator.advance` ended (a str: ``status == "touchdown"`` works)."""
+
+    DONE = "done"
+    TOUCHDOWN = "touchdown"
+    FAILED = "failed"
+    MAX_STEPS = "max_steps"
+
+
+# codes of the compiled loop, in the order of IntegrationStatus
+_DONE, _TOUCHDOWN, _FAILED, _MAX_STEPS = 0, 1, 2, 3
+_STATUS_OF_CODE = tuple(IntegrationStatus)
+
+# step-size controller (Hairer & Wanner IV.8): h' = h * clip(SAFETY err^EXPONENT, MIN_FACTOR, MAX_FACTOR);
+# a rejected step uses the milder REJECT_SAFETY, a Newton failure divides h by 4
+_SAFETY = 0.8
+_REJECT_SAFETY = 0.9
+_MIN_FACTOR = 0.2
+_MAX_FACTOR = 2.0
+_ERROR_EXPONENT = -1.0 / 3.0  # the trapezoidal rule's local error is O(h^3)
+_NEWTON_FAILURE_FACTOR = 0.25
+
+# statistics (int vector of the compiled loop; named by IntegratorStatistics, in this order)
 _NSTEPS, _NREJ_ERR, _NREJ_NEWTON, _NJAC, _NFACT, _NRHS, _NREC, _NBAD_H, _NDIVERGED = 0, 1, 2, 3, 4, 5, 6, 7, 8
-# extremes (float vector)
+# extremes and the touchdown event (float vector of the compiled loop)
 _MINH, _XIMIN, _XIMAX, _ETAMIN, _ETAMAX, _EPSMAX, _EVT, _EVXI, _EVETA = 0, 1, 2, 3, 4, 5, 6, 7, 8
 
 
@@ -80,10 +112,64 @@ class IntegrationError(RuntimeError):
     """The integrator could not continue (step size below the minimum, or too many steps)."""
 
 
-class EquilibriumError(RuntimeError):
-    """No static equilibrium was found."""
+# ------------------------------------------------------------------------------------------------
+# Argument groups of the compiled loop (numba passes NamedTuples by value; the arrays are shared).
+# _advance unpacks them by position once per call, so the field order is part of the contract.
+class _Jacobian(NamedTuple):
+    """The blocks of J (see :mod:`gfb_env._kernels`), refreshed in place."""
+
+    Ad: np.ndarray
+    Ap: np.ndarray
+    Am: np.ndarray
+    Er: np.ndarray
+    Rr: np.ndarray
+    Srr: np.ndarray
 
 
+class _Factorization(NamedTuple):
+    """Workspace of the factors of ``I - h/2 J`` and the solver's static parameters."""
+
+    Dlu: np.ndarray
+    Dpiv: np.ndarray
+    Uhat: np.ndarray
+    Y: np.ndarray
+    Slu: np.ndarray
+    Spiv: np.ndarray
+    n_rows: int
+    sparse: bool
+    size_tag: tuple
+
+
+class _Options(NamedTuple):
+    """The integrator's settings (see :class:`TrapezoidalIntegrator`) and the call's ``max_steps``."""
+
+    rtol: float
+    atol: float
+    min_step: float
+    max_step: float
+    touchdown_film_thickness: float
+    max_steps: int
+    max_newton_iterations: int
+    newton_tol: float
+    factorization_ratio: float
+    slow_newton_iterations: int
+
+
+class _Recording(NamedTuple):
+    """Dense output: rows ``[tau, s[indices]..., min H]`` every ``interval`` from ``first_tau``."""
+
+    indices: np.ndarray
+    interval: float
+    first_tau: float
+    buffer: np.ndarray
+
+
+# ------------------------------------------------------------------------------------------------
+# Stages of one step, inlined into _advance.  They take arrays one by one, not in their groups: in
+# numba every extraction of an array from a tuple is a reference-count pair, and one per stage and step
+# cost 3 % of a step (``python -m gfb_experiments.bench_interleaved``).  Scalars travel in tuples freely.
+# What is left (+0.7-1 % against the single function) is _newton's array arguments, whose reference
+# counts survive across its calls to k and the solver; written out in _advance it measured +0.3 %.
 @njit(cache=True)
 def _wnorm(dx, x, y, rtol, atol):
     mx = 0.0
@@ -95,39 +181,234 @@ def _wnorm(dx, x, y, rtol, atol):
     return mx
 
 
-@njit(cache=True)
-def _advance(
-    s, f, fprev, sprev, sprev2, fs, t_end, lam0, lam1, dw0, dw1, ip, fp, sn, cs,
-    Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv,
-    rtol, atol, h_min, h_max, touchdown, max_steps, max_newton, newton_tol,
-    rec_idx, rec_dt, rec_next, rec_buf, stats, ext, fact_ratio, slow_iters, sparse, size_tag,
+@njit(inline="always")
+def _ramp(a0, a1, theta):
+    return a0 + (a1 - a0) * theta
+
+
+@njit(inline="always")
+def _predict(x, s, sprev, sprev2, f, hstep, hp, hp2, history):
+    """Extrapolate the states (not k, which rings in stiff modes): quadratic through the last three
+    accepted states, linear after a restart, an Euler step without history."""
+    n = x.shape[0]
+    if history >= 2:
+        # Lagrange weights of the quadratic through (-hp - hp2, sprev2), (-hp, sprev), (0, s) at hstep
+        ta = -hp - hp2
+        w2 = (hstep + hp) * hstep / (hp2 * (hp + hp2))
+        w1 = -(hstep - ta) * hstep / (hp2 * hp)
+        w0 = (hstep - ta) * (hstep + hp) / (ta * -hp)
+        for i in range(n):
+            x[i] = w0 * s[i] + w1 * sprev[i] + w2 * sprev2[i]
+    elif history >= 1:
+        c2 = hstep / hp
+        for i in range(n):
+            x[i] = s[i] + c2 * (s[i] - sprev[i])
+    else:
+        for i in range(n):
+            x[i] = s[i] + hstep * f[i]
+
+
+@njit(inline="always")
+def _newton(
+    x, fx, fnew, r, dx, zb, H, Hd,  # workspace: x holds the prediction, then the iterate
+    s, f, hstep, h_fact, lam_b, dw_b,  # the step from (s, f) with the factors of I - h_fact/2 J
+    ip, fp, sn, cs,  # the model (GFBModel.kernel_args)
+    Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, lu_static,  # the factorisation
+    opt, stats,
 ):  # fmt: skip
+    """Modified Newton iteration for the trapezoidal step; on success ``fnew = k(x)`` (checked
+    admissible and finite).  Returns (converged, iterations)."""
+    n_rows, sparse, size_tag = lu_static
+    n = x.shape[0]
+    converged = False
+    dprev = 0.0
+    iters = 0
+    for it in range(opt.max_newton_iterations):
+        iters = it + 1
+        K.rhs(x, lam_b, dw_b, ip, fp, sn, cs, fx, H, Hd)
+        stats[_NRHS] += 1
+        if not H.min() > 0.0:  # intermediate iterates may dip below P = 0, never below H = 0
+            stats[_NBAD_H] += 1
+            break
+        for i in range(n):
+            r[i] = -(x[i] - s[i] - 0.5 * hstep * (f[i] + fx[i]))
+        K.solve_system(
+            0.5 * h_fact, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, n_rows, r, dx, zb, sparse, size_tag
+        )  # fmt: skip
+        for i in range(n):
+            x[i] += dx[i]
+        dn = _wnorm(dx, x, s, opt.rtol, opt.atol)
+        if not dn < 1e30:
+            break
+        if dn <= opt.newton_tol:
+            converged = True
+            break
+        if it > 0:
+            rate = dn / dprev
+            if rate >= 0.9:
+                stats[_NDIVERGED] += 1
+                break
+            if rate / (1.0 - rate) * dn <= opt.newton_tol:
+                converged = True
+                break
+        dprev = dn
+    if converged:
+        mn = K.rhs(x, lam_b, dw_b, ip, fp, sn, cs, fnew, H, Hd)
+        stats[_NRHS] += 1
+        if not mn > 0.0:
+            converged = False
+        else:
+            for i in range(n):
+                if not abs(fnew[i]) < 1e300:
+                    converged = False
+                    break
+    return converged, iters
+
+
+@njit(inline="always")
+def _error_norm(
+    r, dx, zb, x, fnew,  # workspace, the accepted iterate x and fnew = k(x)
+    s, f, fprev, hstep, hp, history, h_fact,
+    Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, lu_static,  # the factorisation
+    opt,
+):  # fmt: skip
+    """Weighted max-norm of the local error ``-h^3/12 s'''`` (s''' from the divided difference of k),
+    filtered through ``(I - h/2 J)^-1`` when the raw estimate rejects the step."""
     n = s.shape[0]
-    nc = ip[0]
-    nr = ip[1]
-    H = np.empty(nc)
-    Hd = np.empty(nc)
-    x = np.empty(n)
-    fx = np.empty(n)
-    fnew = np.empty(n)
-    r = np.empty(n)
-    dx = np.empty(n)
-    ftmp = np.empty(n)
-    zb = np.empty((nc, Ad.shape[1]))
-    nrec_cols = rec_idx.shape[0]
-    t = fs[_T]
-    h = fs[_H]
+    if history >= 1:
+        c3 = hstep**3 / 12.0 * 2.0 / (hstep + hp)
+        for i in range(n):
+            r[i] = c3 * ((fnew[i] - f[i]) / hstep - (f[i] - fprev[i]) / hp)
+    else:
+        c3 = hstep / 6.0
+        for i in range(n):
+            r[i] = c3 * (fnew[i] - f[i])
+    err = _wnorm(r, x, s, opt.rtol, opt.atol)
+    if err > 1.0:  # only a rejected raw estimate is worth the filtering solve
+        n_rows, sparse, size_tag = lu_static
+        K.solve_system(
+            0.5 * h_fact, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, n_rows, r, dx, zb, sparse, size_tag
+        )  # fmt: skip
+        err = _wnorm(dx, x, s, opt.rtol, opt.atol)
+    return err
+
+
+@njit(inline="always")
+def _record_dense(
+    buf, idx, interval, rec_n, rec_next, t_old, t, eps_t, hstep, s, f, x, fnew, hmin_old, hmin_new
+):
+    """Cubic Hermite samples at the recording times in (t_old, t] into ``buf`` (rows ``[tau, s[idx]...,
+    min H]``, min H linear in time); returns the new (count, next time)."""
+    ncols = idx.shape[0]
+    while rec_n < buf.shape[0] and rec_next <= t + eps_t:
+        th = (rec_next - t_old) / hstep
+        h00 = (1.0 + 2.0 * th) * (1.0 - th) ** 2
+        h10 = th * (1.0 - th) ** 2
+        h01 = th * th * (3.0 - 2.0 * th)
+        h11 = th * th * (th - 1.0)
+        buf[rec_n, 0] = rec_next
+        for q in range(ncols):
+            k = idx[q]
+            buf[rec_n, 1 + q] = h00 * s[k] + h10 * hstep * f[k] + h01 * x[k] + h11 * hstep * fnew[k]
+        buf[rec_n, 1 + ncols] = hmin_old + th * (hmin_new - hmin_old)
+        rec_n += 1
+        rec_next += interval
+    return rec_n, rec_next
+
+
+@njit(inline="always")
+def _shift_history(s, f, fprev, sprev, sprev2, x, fnew):
+    """Accept x: (s, sprev, sprev2) <- (x, s, sprev) and (f, fprev) <- (fnew, f)."""
+    for i in range(s.shape[0]):
+        fprev[i] = f[i]
+        f[i] = fnew[i]
+        sprev2[i] = sprev[i]
+        sprev[i] = s[i]
+        s[i] = x[i]
+
+
+@njit(inline="always")
+def _update_extremes(ext, xi, eta, hmin):
+    ext[_MINH] = min(ext[_MINH], hmin)
+    ext[_XIMIN] = min(ext[_XIMIN], xi)
+    ext[_XIMAX] = max(ext[_XIMAX], xi)
+    ext[_ETAMIN] = min(ext[_ETAMIN], eta)
+    ext[_ETAMAX] = max(ext[_ETAMAX], eta)
+    ext[_EPSMAX] = max(ext[_EPSMAX], math.sqrt(xi * xi + eta * eta))
+
+
+@njit(inline="always")
+def _touchdown(ext, hmin_old, hmin_new, threshold, t_old, hstep, s, f, r0):
+    """Whether the accepted step crossed the touchdown threshold; if so, its time and rotor position
+    (linear in min H, the position from the state and its derivative at the step end) go into ext."""
+    if not hmin_new < threshold:
+        return False
+    th = (hmin_old - threshold) / (hmin_old - hmin_new) if hmin_old > hmin_new else 1.0
+    th = min(max(th, 0.0), 1.0)
+    ext[_EVT] = t_old + th * hstep
+    ext[_EVXI] = s[r0] - (1.0 - th) * hstep * f[r0]
+    ext[_EVETA] = s[r0 + 1] - (1.0 - th) * hstep * f[r0 + 1]
+    return True
+
+
+@njit(inline="always")
+def _step_after_rejection(hstep, err):
+    return hstep * max(_MIN_FACTOR, _REJECT_SAFETY * err**_ERROR_EXPONENT)
+
+
+@njit(inline="always")
+def _step_after_acceptance(h, hstep, err, truncated, max_step):
+    """The next step; a step truncated to hit t_end keeps the previous proposal ``h`` unless the error
+    asks for a smaller one."""
+    fac = _MAX_FACTOR if err == 0.0 else min(_MAX_FACTOR, _SAFETY * err**_ERROR_EXPONENT)
+    if not truncated or fac < 1.0:
+        return min(hstep * max(fac, _MIN_FACTOR), max_step)
+    return h
+
+
+# ------------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats, ext):
+    """Integrate to ``schedule[0]`` (see the module docstring's state machine).
+
+    y = (s, f, fprev, sprev, sprev2), updated in place; clock = (tau, step, previous_step,
+    previous_step2, history); schedule = (tau_end, Lambda_0, Lambda_1, D_W0, D_W1); kargs: the model's
+    :meth:`~gfb_env.model.GFBModel.kernel_args`; jac: :class:`_Jacobian`; lu: :class:`_Factorization`;
+    opt: :class:`_Options`; rec: :class:`_Recording`; stats, ext: counters and extremes (in place).
+    Returns (status code, clock at the end).
+    """
+    # the groups' arrays into locals once (see "Stages of one step")
+    s, f, fprev, sprev, sprev2 = y
+    t, h, hp, hp2, history = clock
+    t_end, lam0, lam1, dw0, dw1 = schedule
+    ip, fp, sn, cs = kargs
+    Ad, Ap, Am, Er, Rr, Srr = jac
+    Dlu, Dpiv, Uhat, Y, Slu, Spiv, n_rows, sparse, size_tag = lu
+    lu_static = (n_rows, sparse, size_tag)
+    rec_idx, rec_dt, rec_next, rec_buf = rec
+    # workspace
+    n = s.shape[0]
+    nc = Ad.shape[0]
+    x = np.empty(n)  # Newton iterate (the new state once accepted)
+    fx = np.empty(n)  # k(x) during the iteration
+    fnew = np.empty(n)  # k at the accepted x
+    r = np.empty(n)  # residual, then the local error estimate
+    dx = np.empty(n)  # Newton update, then the filtered error
+    ftmp = np.empty(n)  # k at s_n (by-product of the Jacobian)
+    zb = np.empty((nc, Ad.shape[1]))  # solver workspace
+    H = np.empty(nc)  # film thickness per column at the last k evaluation
+    Hd = np.empty(nc)  # its time derivative
     t_start = t
     span = t_end - t_start
     if span <= 0.0:
-        return _DONE
+        return _DONE, (t, h, hp, hp2, history)
+    r0 = n - 4  # the rotor follows the film and foil unknowns
     jac_valid = False
     jac_fresh = False
     fact_valid = False
     h_fact = -1.0
     eps_t = 1e-12 * max(1.0, abs(t_end))
     rec_n = 0
-    rec_cap = rec_buf.shape[0]
     K.film_thickness(s, ip, fp, sn, cs, H)
     hmin_old = H.min()
     status = _DONE
@@ -135,7 +416,7 @@ def _advance(
         if t >= t_end - eps_t:
             status = _DONE
             break
-        if stats[_NSTEPS] >= max_steps:
+        if stats[_NSTEPS] >= opt.max_steps:
             status = _MAX_STEPS
             break
         hstep = h
@@ -146,119 +427,54 @@ def _advance(
         tn = t + hstep
         th0 = (t - t_start) / span
         th1 = min((tn - t_start) / span, 1.0)
-        lam_a = lam0 + (lam1 - lam0) * th0
-        dw_a = dw0 + (dw1 - dw0) * th0
-        lam_b = lam0 + (lam1 - lam0) * th1
-        dw_b = dw0 + (dw1 - dw0) * th1
         if not jac_valid:
+            lam_a = _ramp(lam0, lam1, th0)
+            dw_a = _ramp(dw0, dw1, th0)
             K.jacobian_blocks(s, lam_a, dw_a, ip, fp, sn, cs, ftmp, H, Hd, Ad, Ap, Am, Er, Rr, Srr)
             stats[_NJAC] += 1
             jac_valid = True
             jac_fresh = True
             fact_valid = False
-        if (not fact_valid) or hstep > h_fact * fact_ratio or hstep < h_fact / fact_ratio:
+        ratio = opt.factorization_ratio
+        if (not fact_valid) or hstep > h_fact * ratio or hstep < h_fact / ratio:
             stats[_NFACT] += 1
             if not K.factor_system(
                 0.5 * hstep, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, sparse, size_tag
             ):  # fmt: skip
                 fact_valid = False
-                h = 0.25 * hstep
+                h = _NEWTON_FAILURE_FACTOR * hstep
                 stats[_NREJ_NEWTON] += 1
-                if h < h_min:
+                if h < opt.min_step:
                     status = _FAILED
                     break
                 continue
             fact_valid = True
             h_fact = hstep
-        # predictor: linear extrapolation of the states (not of k, which rings in stiff modes)
-        hp = fs[_HPREV]
-        if fs[_HISTORY] >= 2.0:
-            # Lagrange weights of the quadratic through (-hp - hp2, sprev2), (-hp, sprev), (0, s) at hstep
-            hp2 = fs[_HPREV2]
-            ta = -hp - hp2
-            w2 = (hstep + hp) * hstep / (hp2 * (hp + hp2))
-            w1 = -(hstep - ta) * hstep / (hp2 * hp)
-            w0 = (hstep - ta) * (hstep + hp) / (ta * -hp)
-            for i in range(n):
-                x[i] = w0 * s[i] + w1 * sprev[i] + w2 * sprev2[i]
-        elif fs[_HISTORY] >= 1.0:
-            c2 = hstep / hp
-            for i in range(n):
-                x[i] = s[i] + c2 * (s[i] - sprev[i])
-        else:
-            for i in range(n):
-                x[i] = s[i] + hstep * f[i]
-        converged = False
-        dprev = 0.0
-        iters = 0
-        for it in range(max_newton):
-            iters = it + 1
-            K.rhs(x, lam_b, dw_b, ip, fp, sn, cs, fx, H, Hd)
-            stats[_NRHS] += 1
-            if not H.min() > 0.0:  # intermediate iterates may dip below P = 0, never below H = 0
-                stats[_NBAD_H] += 1
-                break
-            for i in range(n):
-                r[i] = -(x[i] - s[i] - 0.5 * hstep * (f[i] + fx[i]))
-            K.solve_system(
-                0.5 * h_fact, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, r, dx, zb, sparse, size_tag
-            )  # fmt: skip
-            for i in range(n):
-                x[i] += dx[i]
-            dn = _wnorm(dx, x, s, rtol, atol)
-            if not dn < 1e30:
-                break
-            if dn <= newton_tol:
-                converged = True
-                break
-            if it > 0:
-                rate = dn / dprev
-                if rate >= 0.9:
-                    stats[_NDIVERGED] += 1
-                    break
-                if rate / (1.0 - rate) * dn <= newton_tol:
-                    converged = True
-                    break
-            dprev = dn
-        if converged:
-            mn = K.rhs(x, lam_b, dw_b, ip, fp, sn, cs, fnew, H, Hd)
-            stats[_NRHS] += 1
-            if not mn > 0.0:
-                converged = False
-            else:
-                for i in range(n):
-                    if not abs(fnew[i]) < 1e300:
-                        converged = False
-                        break
+        _predict(x, s, sprev, sprev2, f, hstep, hp, hp2, history)
+        lam_b = _ramp(lam0, lam1, th1)
+        dw_b = _ramp(dw0, dw1, th1)
+        converged, iters = _newton(
+            x, fx, fnew, r, dx, zb, H, Hd, s, f, hstep, h_fact, lam_b, dw_b, ip, fp, sn, cs,
+            Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, lu_static, opt, stats,
+        )  # fmt: skip
         if not converged:
             stats[_NREJ_NEWTON] += 1
             if not jac_fresh:
-                jac_valid = False
+                jac_valid = False  # retry with a fresh Jacobian at the same h
             else:
-                h = 0.25 * hstep
-                if h < h_min:
+                h = _NEWTON_FAILURE_FACTOR * hstep
+                if h < opt.min_step:
                     status = _FAILED
                     break
             continue
-        # local error estimate from the divided difference of k, filtered through (I - h/2 J)^-1
-        if fs[_HISTORY] >= 1.0:
-            c3 = hstep**3 / 12.0 * 2.0 / (hstep + hp)
-            for i in range(n):
-                r[i] = c3 * ((fnew[i] - f[i]) / hstep - (f[i] - fprev[i]) / hp)
-        else:
-            c3 = hstep / 6.0
-            for i in range(n):
-                r[i] = c3 * (fnew[i] - f[i])
-        err = _wnorm(r, x, s, rtol, atol)
-        if err > 1.0:  # only a rejected raw estimate is worth the filtering solve
-            K.solve_system(
-                0.5 * h_fact, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, r, dx, zb, sparse, size_tag
-            )  # fmt: skip
-            err = _wnorm(dx, x, s, rtol, atol)
+        err = _error_norm(
+            r, dx, zb, x, fnew, s, f, fprev, hstep, hp, history, h_fact,
+            Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, lu_static, opt,
+        )  # fmt: skip
         if err > 1.0:
             stats[_NREJ_ERR] += 1
-            h = hstep * max(0.2, 0.9 * err ** (-1.0 / 3.0))
-            if h < h_min:
+            h = _step_after_rejection(hstep, err)
+            if h < opt.min_step:
                 status = _FAILED
                 break
             continue
@@ -266,60 +482,154 @@ def _advance(
         t_old = t
         t = tn
         hmin_new = H.min()
-        # dense output (cubic Hermite) at the uniform recording times in (t_old, t]
-        while rec_n < rec_cap and rec_next <= t + eps_t:
-            th = (rec_next - t_old) / hstep
-            h00 = (1.0 + 2.0 * th) * (1.0 - th) ** 2
-            h10 = th * (1.0 - th) ** 2
-            h01 = th * th * (3.0 - 2.0 * th)
-            h11 = th * th * (th - 1.0)
-            rec_buf[rec_n, 0] = rec_next
-            for q in range(nrec_cols):
-                k = rec_idx[q]
-                rec_buf[rec_n, 1 + q] = h00 * s[k] + h10 * hstep * f[k] + h01 * x[k] + h11 * hstep * fnew[k]
-            rec_buf[rec_n, 1 + nrec_cols] = hmin_old + th * (hmin_new - hmin_old)
-            rec_n += 1
-            rec_next += rec_dt
-        for i in range(n):
-            fprev[i] = f[i]
-            f[i] = fnew[i]
-            sprev2[i] = sprev[i]
-            sprev[i] = s[i]
-            s[i] = x[i]
-        fs[_HPREV2] = fs[_HPREV]
-        fs[_HPREV] = hstep
-        fs[_HISTORY] = min(fs[_HISTORY] + 1.0, 2.0)
+        rec_n, rec_next = _record_dense(
+            rec_buf, rec_idx, rec_dt, rec_n, rec_next, t_old, t, eps_t, hstep, s, f, x, fnew,
+            hmin_old, hmin_new,
+        )  # fmt: skip
+        _shift_history(s, f, fprev, sprev, sprev2, x, fnew)
+        hp2 = hp
+        hp = hstep
+        history = min(history + 1, 2)
         stats[_NSTEPS] += 1
         jac_fresh = False
-        if iters > slow_iters:
+        if iters > opt.slow_newton_iterations:
             jac_valid = False
-        r0 = n - 4
-        xi = s[r0]
-        eta = s[r0 + 1]
-        ext[_MINH] = min(ext[_MINH], hmin_new)
-        ext[_XIMIN] = min(ext[_XIMIN], xi)
-        ext[_XIMAX] = max(ext[_XIMAX], xi)
-        ext[_ETAMIN] = min(ext[_ETAMIN], eta)
-        ext[_ETAMAX] = max(ext[_ETAMAX], eta)
-        ext[_EPSMAX] = max(ext[_EPSMAX], math.sqrt(xi * xi + eta * eta))
-        if hmin_new < touchdown:
-            th = (hmin_old - touchdown) / (hmin_old - hmin_new) if hmin_old > hmin_new else 1.0
-            th = min(max(th, 0.0), 1.0)
-            ext[_EVT] = t_old + th * hstep
-            ext[_EVXI] = s[r0] - (1.0 - th) * hstep * f[r0]
-            ext[_EVETA] = s[r0 + 1] - (1.0 - th) * hstep * f[r0 + 1]
+        _update_extremes(ext, s[r0], s[r0 + 1], hmin_new)
+        if _touchdown(ext, hmin_old, hmin_new, opt.touchdown_film_thickness, t_old, hstep, s, f, r0):
             status = _TOUCHDOWN
             break
         hmin_old = hmin_new
-        # next step size
-        fac = 2.0 if err == 0.0 else min(2.0, 0.8 * err ** (-1.0 / 3.0))
-        if not truncated or fac < 1.0:
-            h = min(hstep * max(fac, 0.2), h_max)
-        # a step truncated to hit t_end keeps the previous step-size proposal
-    fs[_T] = t
-    fs[_H] = h
+        h = _step_after_acceptance(h, hstep, err, truncated, opt.max_step)
     stats[_NREC] = rec_n
-    return status
+    return status, (t, h, hp, hp2, history)
+
+
+# ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class IntegratorStatistics:
+    """Work counters, summed over the calls since the last reset."""
+
+    steps: int = 0
+    rejected_steps: int = 0  # by the error test
+    newton_failures: int = 0  # trial steps whose Newton iteration (or factorisation) failed
+    jacobians: int = 0
+    factorizations: int = 0
+    rhs_evaluations: int = 0
+    recorded_samples: int = 0  # by the compiled loop (a sample at the very start is not counted)
+    inadmissible_iterates: int = 0  # Newton iterates with H <= 0 somewhere
+    diverged_iterations: int = 0  # Newton iterations stopped for a contraction rate >= 0.9
+
+    @classmethod
+    def from_array(cls, a: np.ndarray) -> IntegratorStatistics:
+        """From the compiled loop's counter vector (in the field order)."""
+        return cls(*(int(v) for v in a))
+
+    def as_array(self) -> np.ndarray:
+        return np.array(dataclasses.astuple(self), dtype=np.int64)
+
+    def __add__(self, other: IntegratorStatistics) -> IntegratorStatistics:
+        return IntegratorStatistics.from_array(self.as_array() + other.as_array())
+
+
+@dataclass(frozen=True)
+class StepperState:
+    """Everything the continuation of a run depends on: the one owner of the integrator's saved state.
+
+    The arrays are updated in place by the compiled loop (so "frozen" means: the fields are not
+    rebound); :meth:`TrapezoidalIntegrator.snapshot` hands out a :meth:`copy`.  ``history`` counts the
+    earlier accepted states the predictor may use (0, 1 or 2).
+    """
+
+    s: np.ndarray  # the state s_n at tau
+    f: np.ndarray  # k(s_n)
+    fprev: np.ndarray  # k(s_{n-1})
+    sprev: np.ndarray  # s_{n-1}
+    sprev2: np.ndarray  # s_{n-2}
+    tau: float
+    step: float  # the step size the next step will try
+    previous_step: float  # h_{n-1}
+    previous_step2: float  # h_{n-2}
+    history: int
+    bearing_number: float  # Lambda at tau
+    foil_damping: float  # D_W at tau
+    statistics: IntegratorStatistics
+    last_record_tau: float  # the last recorded sample (each grid time is recorded once)
+
+    ARRAYS = ("s", "f", "fprev", "sprev", "sprev2")
+
+    @classmethod
+    def start(
+        cls,
+        model: GFBModel,
+        s: np.ndarray,
+        bearing_number: float,
+        foil_damping: float,
+        tau: float,
+        first_step: float,
+    ) -> StepperState:
+        """A fresh start from ``s`` (no step history)."""
+        return cls(
+            s=s,
+            f=model.rhs(s, bearing_number, foil_damping),
+            fprev=np.zeros_like(s),
+            sprev=s.copy(),
+            sprev2=s.copy(),
+            tau=float(tau),
+            step=float(first_step),
+            previous_step=0.0,
+            previous_step2=0.0,
+            history=0,
+            bearing_number=float(bearing_number),
+            foil_damping=float(foil_damping),
+            statistics=IntegratorStatistics(),
+            last_record_tau=-math.inf,
+        )
+
+    def copy(self) -> StepperState:
+        """A copy with copied arrays."""
+        return dataclasses.replace(self, **{k: getattr(self, k).copy() for k in self.ARRAYS})
+
+    @property
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(s, f, fprev, sprev, sprev2)``: the compiled loop's ``y``."""
+        return self.s, self.f, self.fprev, self.sprev, self.sprev2
+
+    @property
+    def clock(self) -> tuple[float, float, float, float, int]:
+        """``(tau, step, previous_step, previous_step2, history)``: the compiled loop's ``clock``."""
+        return (
+            float(self.tau),
+            float(self.step),
+            float(self.previous_step),
+            float(self.previous_step2),
+            int(self.history),
+        )
+
+    def with_clock(self, clock: tuple[float, float, float, float, int]) -> StepperState:
+        """The same arrays with the clock the compiled loop returned."""
+        tau, step, previous_step, previous_step2, history = clock
+        return dataclasses.replace(
+            self,
+            tau=float(tau),
+            step=float(step),
+            previous_step=float(previous_step),
+            previous_step2=float(previous_step2),
+            history=int(history),
+        )
+
+    def as_dict(self) -> dict[str, Any]:
+        """The fields as a dict (arrays copied), plus ``lam``/``dw``: aliases of the operating point for
+        callers of the earlier dict snapshot (``gfb_env.envs.base`` reads them)."""
+        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        d |= {k: d[k].copy() for k in self.ARRAYS}
+        return d | {"lam": self.bearing_number, "dw": self.foil_damping}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> StepperState:
+        """Inverse of :meth:`as_dict` (arrays copied; the aliases are ignored)."""
+        kw = {f.name: d[f.name] for f in dataclasses.fields(cls)}
+        kw |= {k: np.array(kw[k], dtype=float, copy=True) for k in cls.ARRAYS}
+        return cls(**kw)
 
 
 @dataclass
@@ -370,7 +680,7 @@ class TouchdownEvent:
 class AdvanceResult:
     """What :meth:`TrapezoidalIntegrator.advance` did."""
 
-    status: str
+    status: IntegrationStatus
     tau: float
     trajectory: Trajectory
     touchdown: TouchdownEvent | None
@@ -389,7 +699,7 @@ class AdvanceResult:
 
     @property
     def ok(self) -> bool:
-        return self.status in ("done", "touchdown")
+        return self.status in (IntegrationStatus.DONE, IntegrationStatus.TOUCHDOWN)
 
 
 class TrapezoidalIntegrator:
@@ -459,16 +769,21 @@ class TrapezoidalIntegrator:
             raise ValueError(f"factorization_ratio must be >= 1, got {factorization_ratio!r}")
         self.factorization_ratio = float(factorization_ratio)
         self.slow_newton_iterations = int(slow_newton_iterations)
-        b = model.new_blocks()
-        self._blocks = b
+        self._kernel_args = model.kernel_args()
+        self._jacobian = _Jacobian(**model.new_blocks())
         nc, m = model.grid.n_columns, model.layout.block_size
         nb = m + 4
-        self._Dlu = np.zeros((nc, m, m))
-        self._Dpiv = np.zeros((nc, m), dtype=np.int64)
-        self._Uhat = np.zeros((nc, m, m))
-        self._Y = np.zeros((nc, m, nb))
-        self._Slu = np.zeros((nb, nb))
-        self._Spiv = np.zeros(nb, dtype=np.int64)
+        self._factorization = _Factorization(
+            Dlu=np.zeros((nc, m, m)),
+            Dpiv=np.zeros((nc, m), dtype=np.int64),
+            Uhat=np.zeros((nc, m, m)),
+            Y=np.zeros((nc, m, nb)),
+            Slu=np.zeros((nb, nb)),
+            Spiv=np.zeros(nb, dtype=np.int64),
+            n_rows=model.grid.n_rows,
+            sparse=model.sparse_offdiagonal_blocks,
+            size_tag=K.size_tag(m),
+        )
         self.reset(state, bearing_number, foil_damping, tau)
 
     # ------------------------------------------------------------------------------------------
@@ -480,65 +795,59 @@ class TrapezoidalIntegrator:
         s = np.array(self.model.layout.check(state), dtype=float, copy=True)
         if not np.all(np.isfinite(s)):
             raise ValueError("state must be finite")
-        self._s = s
-        self._lam = float(bearing_number)
-        self._dw = float(foil_damping)
-        self._f = self.model.rhs(s, self._lam, self._dw)
-        self._fprev = np.zeros_like(s)
-        self._sprev = s.copy()
-        self._sprev2 = s.copy()
-        self._fs = np.array([float(tau), self.first_step, 0.0, 0.0, 0.0])
-        self.stats = np.zeros(9, dtype=np.int64)
-        self._last_record_tau = -math.inf
+        self._stepper = StepperState.start(self.model, s, bearing_number, foil_damping, tau, self.first_step)
 
     @property
     def tau(self) -> float:
-        return float(self._fs[_T])
+        return self._stepper.tau
 
     @property
     def state(self) -> np.ndarray:
         """Current state (a copy)."""
-        return self._s.copy()
+        return self._stepper.s.copy()
 
     @property
     def bearing_number(self) -> float:
-        return self._lam
+        return self._stepper.bearing_number
 
     @property
     def foil_damping(self) -> float:
-        return self._dw
+        return self._stepper.foil_damping
 
     @property
     def step_size(self) -> float:
         """The step size the next step will try."""
-        return float(self._fs[_H])
+        return self._stepper.step
 
-    def get_state(self) -> dict:
-        """Snapshot everything the continuation depends on (restore with :meth:`set_state`)."""
-        return {
-            "s": self._s.copy(),
-            "f": self._f.copy(),
-            "fprev": self._fprev.copy(),
-            "sprev": self._sprev.copy(),
-            "sprev2": self._sprev2.copy(),
-            "fs": self._fs.copy(),
-            "lam": self._lam,
-            "dw": self._dw,
-            "stats": self.stats.copy(),
-            "last_record_tau": self._last_record_tau,
-        }
+    @property
+    def statistics(self) -> IntegratorStatistics:
+        """Work counters since the last :meth:`reset`."""
+        return self._stepper.statistics
 
-    def set_state(self, snap: dict) -> None:
-        self._s = snap["s"].copy()
-        self._f = snap["f"].copy()
-        self._fprev = snap["fprev"].copy()
-        self._sprev = snap["sprev"].copy()
-        self._sprev2 = snap["sprev2"].copy()
-        self._fs = snap["fs"].copy()
-        self._lam = float(snap["lam"])
-        self._dw = float(snap["dw"])
-        self.stats = snap["stats"].copy()
-        self._last_record_tau = float(snap["last_record_tau"])
+    @property
+    def stats(self) -> np.ndarray:
+        """:attr:`statistics` as a vector in its field order (``stats[0]`` is the step count)."""
+        return self._stepper.statistics.as_array()
+
+    def snapshot(self) -> StepperState:
+        """Everything the continuation depends on (a copy; restore with :meth:`restore`)."""
+        return self._stepper.copy()
+
+    def restore(self, snapshot: StepperState) -> None:
+        """Continue from ``snapshot`` (copied): the continuation is bit for bit the original one."""
+        if snapshot.s.shape != (self.model.layout.size,):
+            raise ValueError(
+                f"snapshot state has shape {snapshot.s.shape}, the model needs ({self.model.layout.size},)"
+            )
+        self._stepper = snapshot.copy()
+
+    def get_state(self) -> dict[str, Any]:
+        """:meth:`snapshot` as a dict (:meth:`StepperState.as_dict`); restore with :meth:`set_state`."""
+        return self._stepper.as_dict()
+
+    def set_state(self, snap: dict[str, Any] | StepperState) -> None:
+        """Restore a :meth:`get_state` dict (or a :class:`StepperState`)."""
+        self.restore(snap if isinstance(snap, StepperState) else StepperState.from_dict(snap))
 
     # ------------------------------------------------------------------------------------------
     def advance(
@@ -563,8 +872,10 @@ class TrapezoidalIntegrator:
         ``status == "failed"`` / ``"max_steps"`` when ``raise_on_failure`` is False); the state is
         then the last accepted one, never NaN.
         """
-        lam1 = self._lam if bearing_number is None else float(bearing_number)
-        dw1 = self._dw if foil_damping is None else float(foil_damping)
+        st = self._stepper
+        lam0, dw0 = st.bearing_number, st.foil_damping
+        lam1 = lam0 if bearing_number is None else float(bearing_number)
+        dw1 = dw0 if foil_damping is None else float(foil_damping)
         self.model.check_operating_point(lam1, dw1)
         if not math.isfinite(tau_end):
             raise ValueError(f"tau_end must be finite, got {tau_end!r}")
@@ -589,7 +900,7 @@ class TrapezoidalIntegrator:
             rec_dt = float(record_interval)
             # samples on the grid k * rec_dt, each recorded once across consecutive calls
             k0 = math.ceil(t0 / rec_dt - 1e-9)
-            if k0 * rec_dt <= self._last_record_tau + 1e-9 * rec_dt:
+            if k0 * rec_dt <= st.last_record_tau + 1e-9 * rec_dt:
                 k0 += 1
             rec_next = k0 * rec_dt
             cap = max(int(math.floor((tau_end - rec_next) / rec_dt + 1e-9)) + 2, 0)
@@ -599,34 +910,34 @@ class TrapezoidalIntegrator:
         first = 0
         if cap and rec_next <= t0 + 1e-9 * rec_dt:  # a sample exactly at the start
             rec_buf[0, 0] = t0
-            rec_buf[0, 1:-1] = self._s[rec_idx]
-            rec_buf[0, -1] = self.model.min_film_thickness(self._s)
+            rec_buf[0, 1:-1] = st.s[rec_idx]
+            rec_buf[0, -1] = self.model.min_film_thickness(st.s)
             first = 1
             rec_next += rec_dt
-        b = self._blocks
-        code = _advance(
-            self._s, self._f, self._fprev, self._sprev, self._sprev2, self._fs,
-            float(tau_end), self._lam, lam1, self._dw, dw1,
-            self.model._ip, self.model._fp, self.model._sin, self.model._cos,
-            b["Ad"], b["Ap"], b["Am"], b["Er"], b["Rr"], b["Srr"],
-            self._Dlu, self._Dpiv, self._Uhat, self._Y, self._Slu, self._Spiv,
+        options = _Options(
             self.rtol, self.atol, self.min_step, self.max_step, self.touchdown_film_thickness,
-            int(max_steps), self.max_newton_iterations, self.newton_tol,
-            rec_idx, rec_dt, rec_next, rec_buf[first:], stats, ext, self.factorization_ratio,
-            self.slow_newton_iterations, self.model.sparse_offdiagonal_blocks, K.size_tag(L.block_size),
+            int(max_steps), self.max_newton_iterations, self.newton_tol, self.factorization_ratio,
+            self.slow_newton_iterations,
         )  # fmt: skip
-        self.stats += stats
-        t = self.tau
+        recording = _Recording(rec_idx, rec_dt, float(rec_next), rec_buf[first:])
+        code, clock = _advance(
+            st.arrays, st.clock, (float(tau_end), lam0, lam1, dw0, dw1), self._kernel_args,
+            self._jacobian, self._factorization, options, recording, stats, ext,
+        )  # fmt: skip
+        t = float(clock[0])
         span = float(tau_end) - t0
         theta = (t - t0) / span if span > 0 else 1.0
-        lam_t = self._lam + (lam1 - self._lam) * theta
-        dw_t = self._dw + (dw1 - self._dw) * theta
-        lam_start, dw_start = self._lam, self._dw
-        self._lam, self._dw = lam_t, dw_t
+        lam_t = lam0 + (lam1 - lam0) * theta
+        dw_t = dw0 + (dw1 - dw0) * theta
         nrec = first + int(stats[_NREC])
         rb = rec_buf[:nrec]
-        if nrec:
-            self._last_record_tau = float(rb[-1, 0])
+        self._stepper = dataclasses.replace(
+            st.with_clock(clock),
+            bearing_number=lam_t,
+            foil_damping=dw_t,
+            statistics=st.statistics + IntegratorStatistics.from_array(stats),
+            last_record_tau=float(rb[-1, 0]) if nrec else st.last_record_tau,
+        )
         tau_s = rb[:, 0]
         th = (tau_s - t0) / span if span > 0 else np.ones_like(tau_s)
         traj = Trajectory(
@@ -637,10 +948,10 @@ class TrapezoidalIntegrator:
             eta_dot=rb[:, 4].copy(),
             min_film_thickness=rb[:, -1].copy(),
             probes=rb[:, 5:-1].copy(),
-            bearing_number=lam_start + (lam1 - lam_start) * th,
-            foil_damping=dw_start + (dw1 - dw_start) * th,
+            bearing_number=lam0 + (lam1 - lam0) * th,
+            foil_damping=dw0 + (dw1 - dw0) * th,
         )
-        status = _STATUS[code]
+        status = _STATUS_OF_CODE[code]
         event = None
         if code == _TOUCHDOWN:
             event = TouchdownEvent(
@@ -655,7 +966,7 @@ class TrapezoidalIntegrator:
         elif code == _MAX_STEPS:
             msg = f"max_steps={max_steps} reached at tau={t:.6g}"
         if not math.isfinite(ext[_MINH]):
-            ext[_MINH] = self.model.min_film_thickness(self._s)
+            ext[_MINH] = self.model.min_film_thickness(self._stepper.s)
         res = AdvanceResult(
             status=status,
             tau=t,
@@ -676,92 +987,3 @@ class TrapezoidalIntegrator:
         if raise_on_failure and code in (_FAILED, _MAX_STEPS):
             raise IntegrationError(msg)
         return res
-
-
-# ------------------------------------------------------------------------------------------------
-def find_equilibrium(
-    model: GFBModel,
-    bearing_number: float,
-    guess: np.ndarray | None = None,
-    tol: float = 1e-10,
-    max_iterations: int = 50,
-) -> np.ndarray:
-    """Static equilibrium ``k(s0, Lambda) = 0`` by damped Newton with the analytic sparse Jacobian.
-
-    Without a ``guess`` it starts from the centred journal and continues in the load (a quarter of
-    M G, a half, ..., all of it), warm-starting each stage; a failed stage is retried with smaller
-    load increments before :class:`EquilibriumError` is raised.  The equilibrium does not depend on
-    D_W (Q' = 0).  Returns the state (rotor velocities zero).
-    """
-    model.check_operating_point(bearing_number, 1.0)
-    if bearing_number <= 0:
-        raise ValueError("bearing_number must be positive for a gas-film equilibrium")
-    if guess is not None:
-        s = np.array(model.layout.check(guess), dtype=float, copy=True)
-        try:
-            return _newton_equilibrium(model, bearing_number, s, 1.0, tol, max_iterations)
-        except EquilibriumError:
-            pass  # fall back to load continuation from the centre
-    s = model.layout.centred_state()
-    load = 0.0
-    step = 0.25
-    while load < 1.0:
-        target = min(1.0, load + step)
-        try:
-            s = _newton_equilibrium(model, bearing_number, s, target, tol, max_iterations)
-            load = target
-            step = min(step * 2, 0.5)
-        except EquilibriumError:
-            step /= 4
-            if step < 1e-3:
-                raise EquilibriumError(
-                    f"no equilibrium found at Lambda={bearing_number:g} ({model}); load continuation "
-                    f"stalled at {load:.3f} M G"
-                ) from None
-    return s
-
-
-def _newton_equilibrium(
-    model: GFBModel, lam: float, s: np.ndarray, load_fraction: float, tol: float, max_iterations: int
-) -> np.ndarray:
-    L = model.layout
-    s = s.copy()
-    s[L.xi_dot_index] = 0.0
-    s[L.eta_dot_index] = 0.0
-    fp = model._fp.copy()  # the same parameters with the gravity scaled by the load fraction
-    fp[3] = model.params.gravity_parameter * load_fraction
-
-    def residual(x):
-        out = np.empty_like(x)
-        mn = K.rhs(x, lam, 1.0, model._ip, fp, model._sin, model._cos, out, model._H, model._Hd)
-        return out, mn
-
-    r, mn = residual(s)
-    if not mn > 0:
-        raise EquilibriumError("inadmissible starting state")
-    rn = np.linalg.norm(r, np.inf)
-    for _ in range(max_iterations):
-        if rn < tol:
-            return s
-        J = model.jacobian(s, lam, 1.0)  # G enters k only as a constant: J is load-independent
-        try:
-            ds = spla.spsolve(J.tocsc(), -r)
-        except RuntimeError as exc:  # singular
-            raise EquilibriumError(str(exc)) from None
-        if not np.all(np.isfinite(ds)):
-            raise EquilibriumError("singular Jacobian")
-        alpha = 1.0
-        while alpha > 1e-4:
-            x = s + alpha * ds
-            rx, mn = residual(x)
-            if mn > 0 and np.all(np.isfinite(rx)):
-                rxn = np.linalg.norm(rx, np.inf)
-                if rxn < (1 - 0.25 * alpha) * rn or rxn < tol:
-                    break
-            alpha *= 0.5
-        else:
-            raise EquilibriumError("line search failed")
-        s, r, rn = x, rx, rxn
-    if rn < tol * 100:
-        return s
-    raise EquilibriumError(f"Newton did not converge (residual {rn:.3g})")

@@ -32,6 +32,7 @@ import math
 import re
 from dataclasses import dataclass
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -39,7 +40,15 @@ import scipy.sparse as sp
 from gfb_env import _kernels as K
 from gfb_env.params import BearingParameters, NondimensionalParameters, check_positive
 
-__all__ = ["Structure", "Grid", "StateLayout", "GFBModel", "MAX_JACOBIAN_BYTES", "BYTES_PER_BLOCK_ENTRY"]
+__all__ = [
+    "Structure",
+    "Grid",
+    "StateLayout",
+    "GFBModel",
+    "KernelParameters",
+    "MAX_JACOBIAN_BYTES",
+    "BYTES_PER_BLOCK_ENTRY",
+]
 
 #: Measured peak bytes per block-Jacobian entry ``(N_phi-1) m^2`` (see :class:`Grid`).
 BYTES_PER_BLOCK_ENTRY = 192
@@ -237,6 +246,24 @@ class StateLayout:
         return s
 
 
+class KernelParameters(NamedTuple):
+    """What the compiled kernels of :mod:`gfb_env._kernels` know about a model, by name.
+
+    Owned by :class:`GFBModel` (:attr:`GFBModel.kernel_parameters`); :meth:`GFBModel.kernel_args` packs
+    them into the arrays the kernels take, so no other module indexes those arrays.
+    """
+
+    n_columns: int
+    n_rows: int
+    structure_code: int
+    foil_stiffness: float
+    kappa: float
+    mass_parameter: float
+    gravity_parameter: float
+    sin_phi: np.ndarray
+    cos_phi: np.ndarray
+
+
 class GFBModel:
     """k(s, Lambda, D_W) of Eq. (14) with its analytic Jacobian and derived outputs.
 
@@ -265,20 +292,34 @@ class GFBModel:
             check_positive("foil_stiffness", foil_stiffness)
         self.params: NondimensionalParameters = self.bearing.nondimensional(foil_stiffness)
         self.layout = StateLayout(grid, self.structure)
-        self._ip = np.array([grid.n_columns, grid.n_rows, self.structure.code], dtype=np.int64)
-        self._fp = np.array(
-            [
-                self.params.foil_stiffness,
-                self.params.kappa,
-                self.params.mass_parameter,
-                self.params.gravity_parameter,
-            ]
-        )
         phi = grid.phi
-        self._sin = np.sin(phi)
-        self._cos = np.cos(phi)
+        self._kernel_parameters = KernelParameters(
+            n_columns=grid.n_columns,
+            n_rows=grid.n_rows,
+            structure_code=self.structure.code,
+            foil_stiffness=self.params.foil_stiffness,
+            kappa=self.params.kappa,
+            mass_parameter=self.params.mass_parameter,
+            gravity_parameter=self.params.gravity_parameter,
+            sin_phi=np.sin(phi),
+            cos_phi=np.cos(phi),
+        )
+        self._kernel_args = self.kernel_args()
         self._H = np.empty(grid.n_columns)
         self._Hd = np.empty(grid.n_columns)
+
+    @property
+    def kernel_parameters(self) -> KernelParameters:
+        """The model as the compiled kernels see it (read-only: the packed arguments are cached)."""
+        return self._kernel_parameters
+
+    def kernel_args(self, gravity_scale: float = 1.0) -> tuple:
+        """The parameter arguments of the compiled kernels (``rhs``, ``jacobian_blocks``,
+        ``film_thickness``), with the gravity G scaled by ``gravity_scale`` (load continuation)."""
+        kp = self.kernel_parameters
+        if gravity_scale != 1.0:
+            kp = kp._replace(gravity_parameter=kp.gravity_parameter * gravity_scale)
+        return K.pack_parameters(*kp)
 
     # ------------------------------------------------------------------------------------------
     @property
@@ -307,21 +348,18 @@ class GFBModel:
     # ------------------------------------------------------------------------------------------
     def rhs(self, s: np.ndarray, bearing_number: float, foil_damping: float = 1.0) -> np.ndarray:
         """``k(s, Lambda, D_W)`` (``foil_damping`` D_W only matters for the viscoelastic foil)."""
+        return self.rhs_and_minimum(s, bearing_number, foil_damping)[0]
+
+    def rhs_and_minimum(
+        self, s: np.ndarray, bearing_number: float, foil_damping: float = 1.0, gravity_scale: float = 1.0
+    ) -> tuple[np.ndarray, float]:
+        """``k(s, Lambda, D_W)`` with the gravity scaled by ``gravity_scale``, and ``min(min H, min P)``
+        of ``s`` (non-positive: the state is inadmissible) from the same kernel call."""
         s = self.layout.check(s)
         out = np.empty_like(s)
-        K.rhs(
-            s,
-            float(bearing_number),
-            float(foil_damping),
-            self._ip,
-            self._fp,
-            self._sin,
-            self._cos,
-            out,
-            self._H,
-            self._Hd,
-        )
-        return out
+        args = self._kernel_args if gravity_scale == 1.0 else self.kernel_args(gravity_scale)
+        mn = K.rhs(s, float(bearing_number), float(foil_damping), *args, out, self._H, self._Hd)
+        return out, mn
 
     @property
     def sparse_offdiagonal_blocks(self) -> bool:
@@ -356,10 +394,7 @@ class GFBModel:
             s,
             float(bearing_number),
             float(foil_damping),
-            self._ip,
-            self._fp,
-            self._sin,
-            self._cos,
+            *self._kernel_args,
             F,
             self._H,
             self._Hd,
@@ -413,7 +448,7 @@ class GFBModel:
         """Film thickness ``H`` per column (uniform in Z), shape ``(N_phi-1,)``."""
         s = self.layout.check(s)
         H = np.empty(self.grid.n_columns)
-        K.film_thickness(s, self._ip, self._fp, self._sin, self._cos, H)
+        K.film_thickness(s, *self._kernel_args, H)
         return H
 
     def min_film_thickness(self, s: np.ndarray) -> float:
@@ -444,7 +479,8 @@ class GFBModel:
         """Nondimensional bearing force ``[f_xi, f_eta]`` of Eq. (11)."""
         P = self.layout.pressure(self.layout.check(s))
         w = (P - 1.0).sum(axis=1) * self.grid.dphi * self.grid.dz
-        return np.array([w @ self._sin, w @ self._cos])
+        kp = self.kernel_parameters
+        return np.array([w @ kp.sin_phi, w @ kp.cos_phi])
 
     def eccentricity(self, s: np.ndarray) -> float:
         """``eps = sqrt(xi^2 + eta^2)``."""

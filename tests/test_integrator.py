@@ -1,9 +1,18 @@
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
-from gfb_env.integrator import IntegrationError, Trajectory, TrapezoidalIntegrator, find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
+from gfb_env.integrator import (
+    IntegrationError,
+    IntegrationStatus,
+    IntegratorStatistics,
+    StepperState,
+    Trajectory,
+    TrapezoidalIntegrator,
+)
 from gfb_env.model import GFBModel
 
 
@@ -199,3 +208,69 @@ def test_invalid_advance_arguments(small_visco):
     bad[0] = np.nan
     with pytest.raises(ValueError, match="finite"):
         it.reset(bad, 0.6, 1.0)
+
+
+def test_status_is_an_enum_that_compares_as_text(small_visco):
+    m, s0 = small_visco
+    res = TrapezoidalIntegrator(m, s0, 0.6, 1.0).advance(5.0)
+    assert res.status is IntegrationStatus.DONE and res.status == "done" and res.ok
+    s1 = m.layout.with_rotor(s0, 0.3, 0.4, 0.2, 0.0)
+    res = TrapezoidalIntegrator(m, s1, 0.6, 1.0).advance(10.0, max_steps=3, raise_on_failure=False)
+    assert res.status is IntegrationStatus.MAX_STEPS and res.status == "max_steps" and not res.ok
+    assert res.steps == 3
+    it = TrapezoidalIntegrator(m, s1, 0.6, 1.0, rtol=1e-14, atol=1e-14, min_step=1e-2)
+    res = it.advance(10.0, raise_on_failure=False)
+    assert res.status is IntegrationStatus.FAILED and not res.ok
+    rigid = GFBModel("rigid", grid="21x5")
+    s2 = rigid.layout.with_rotor(find_equilibrium(rigid, 0.6), 0.0, 0.6, 0.0, 0.4)
+    res = TrapezoidalIntegrator(rigid, s2, 0.6, touchdown_film_thickness=0.3).advance(100.0)
+    assert res.status is IntegrationStatus.TOUCHDOWN and res.status == "touchdown" and res.ok
+    assert [str(s) for s in IntegrationStatus] == ["done", "touchdown", "failed", "max_steps"]
+
+
+def test_stepper_state_round_trips_and_is_a_copy(small_visco):
+    m, s0 = small_visco
+    it = TrapezoidalIntegrator(m, m.layout.with_rotor(s0, 0.3, 0.4), 0.6, 1.0)
+    it.advance(20.0, bearing_number=0.65, foil_damping=1.5, record_interval=0.5)
+    snap = it.snapshot()
+    assert isinstance(snap, StepperState)
+    assert snap.tau == it.tau == 20.0 and snap.history == 2
+    assert snap.bearing_number == pytest.approx(0.65) and snap.foil_damping == pytest.approx(1.5)
+    assert snap.step == it.step_size and snap.previous_step > 0 and snap.previous_step2 > 0
+    assert snap.last_record_tau == 20.0
+    assert snap.statistics == it.statistics and snap.statistics.steps > 0
+    # the dict form (gfb_env.envs.base reads "s", "lam", "dw") packs and unpacks every field
+    d = it.get_state()
+    assert d["lam"] == snap.bearing_number and d["dw"] == snap.foil_damping
+    back = StepperState.from_dict(d)
+    for name in StepperState.__dataclass_fields__:
+        a, b = getattr(snap, name), getattr(back, name)
+        assert np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b, name
+    # copies, not views: advancing changes neither the snapshot nor the dict
+    s_before = snap.s.copy()
+    tail = it.advance(30.0, record_interval=0.5)
+    assert np.array_equal(snap.s, s_before) and np.array_equal(d["s"], s_before)
+    it.restore(snap)
+    again = it.advance(30.0, record_interval=0.5)
+    assert np.array_equal(tail.trajectory.xi, again.trajectory.xi)
+    it.set_state(d)
+    assert np.array_equal(it.advance(30.0, record_interval=0.5).trajectory.xi, tail.trajectory.xi)
+    with pytest.raises(ValueError, match="shape"):
+        it.restore(dataclasses.replace(snap, s=snap.s[:-1]))
+
+
+def test_statistics_are_named_and_summed_over_calls(small_visco):
+    m, s0 = small_visco
+    it = TrapezoidalIntegrator(m, m.layout.with_rotor(s0, 0.3, 0.4), 0.6, 1.0)
+    a = it.advance(10.0, record_interval=1.0)
+    b = it.advance(20.0, record_interval=1.0)
+    st = it.statistics
+    assert isinstance(st, IntegratorStatistics)
+    assert st.steps == a.steps + b.steps
+    assert st.rejected_steps == a.rejected_steps + b.rejected_steps
+    assert st.jacobians == a.jacobians + b.jacobians
+    assert st.rhs_evaluations == a.rhs_evaluations + b.rhs_evaluations
+    assert st.recorded_samples == len(a.trajectory) + len(b.trajectory) - 1  # the tau = 0 sample
+    assert it.stats[0] == st.steps and list(it.stats) == list(st.as_array())
+    it.reset(s0, 0.6, 1.0)
+    assert it.statistics == IntegratorStatistics()

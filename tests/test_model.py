@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from gfb_env import _kernels as K
-from gfb_env.integrator import find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import GFBModel, Grid, Structure
 from tests.conftest import random_admissible_state
 
@@ -257,3 +257,36 @@ def test_grid_size_limit_reaches_gym_make():
 
     with pytest.raises(ValueError, match="^grid 2001x201 is too large"):
         gym.make("gfb_env/RunUp-v0", grid="2001x201")
+
+
+def test_find_equilibrium_lives_in_its_own_module_and_is_re_exported():
+    import gfb_env
+    import gfb_env.equilibrium as eq
+    import gfb_env.integrator as integ
+
+    assert integ.find_equilibrium is eq.find_equilibrium is gfb_env.find_equilibrium
+    assert integ.EquilibriumError is eq.EquilibriumError is gfb_env.EquilibriumError
+    m = GFBModel("rigid", grid="21x5")
+    s = eq.find_equilibrium(m, 0.6)
+    assert np.abs(m.rhs(s, 0.6)).max() < 1e-9
+    with pytest.raises(ValueError, match="bearing_number"):
+        eq.find_equilibrium(m, 0.0)
+
+
+def test_kernel_parameters_are_named_and_gravity_scale_only_changes_the_vertical_acceleration():
+    m = GFBModel("viscoelastic", grid="21x5", foil_stiffness=1.3)
+    kp = m.kernel_parameters
+    assert (kp.n_columns, kp.n_rows) == (20, 3)
+    assert kp.structure_code == Structure.VISCOELASTIC.code
+    assert kp.foil_stiffness == 1.3 and kp.gravity_parameter == m.params.gravity_parameter
+    assert kp.mass_parameter == m.params.mass_parameter and kp.kappa == m.params.kappa
+    np.testing.assert_array_equal(kp.sin_phi, np.sin(m.grid.phi))
+    s = m.layout.with_rotor(find_equilibrium(m, 0.6), 0.1, 0.3, 0.02, -0.01)
+    k1, mn1 = m.rhs_and_minimum(s, 0.6, 1.0)
+    kh, mnh = m.rhs_and_minimum(s, 0.6, 1.0, gravity_scale=0.5)
+    np.testing.assert_array_equal(k1, m.rhs(s, 0.6, 1.0))
+    assert mn1 == mnh > 0
+    d = kh - k1
+    assert d[m.layout.eta_dot_index] == pytest.approx(-0.5 * m.params.gravity_parameter, rel=1e-12)
+    d[m.layout.eta_dot_index] = 0.0
+    assert not d.any()

@@ -3,7 +3,7 @@
 An equilibrium ``s0`` of Eq. (14) solves ``k(s0, Lambda) = 0``; it does not depend on the foil damping
 ``D_W`` (``Q' = 0``).  Along a sequence of bearing numbers each solve is warm-started from the previous
 solution (natural-parameter continuation, Allgower & Georg, *Introduction to Numerical Continuation
-Methods*, Ch. 1) with the damped Newton method of :func:`gfb_env.integrator.find_equilibrium`, which
+Methods*, Ch. 1) with the damped Newton method of :func:`gfb_env.equilibrium.find_equilibrium`, which
 falls back to load continuation from the centred journal when the warm start fails.
 """
 
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gfb_env.integrator import EquilibriumError, find_equilibrium
+from gfb_env.equilibrium import EquilibriumError, find_equilibrium
 from gfb_env.model import GFBModel
 
 __all__ = ["EquilibriumBranch", "continue_equilibria"]

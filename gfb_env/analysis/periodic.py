@@ -57,7 +57,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from gfb_env.integrator import TrapezoidalIntegrator, find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
+from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel
 from gfb_env.params import check_positive
 

@@ -22,7 +22,7 @@ from gfb_env.analysis.stability import (
     critical_bearing_number,
     jacobian_eigenvalues,
 )
-from gfb_env.integrator import find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import GFBModel
 
 __all__ = [

@@ -12,7 +12,7 @@ from gfb_env.envs._data import nominal_task_constants
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, GFBEnv, StepOutcome, viscoelastic_model
 from gfb_env.envs.config import check_in
 from gfb_env.envs.rewards import RunUpReward
-from gfb_env.integrator import find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import Grid
 from gfb_env.params import BearingParameters
 

@@ -13,7 +13,7 @@ from gfb_env.envs._data import randomized_task_table
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, viscoelastic_model
 from gfb_env.envs.config import EnvConfig, check_bool, check_in
 from gfb_env.envs.run_up import RunUpEnv, RunUpTarget
-from gfb_env.integrator import find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import Grid
 from gfb_env.params import BearingParameters
 

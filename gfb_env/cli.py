@@ -377,6 +377,9 @@ def build_parser() -> argparse.ArgumentParser:
         pass
     else:
         add_analysis_commands(sub)
+        from gfb_env.cli_engineering import add_engineering_commands
+
+        add_engineering_commands(sub)
     return parser
 
 

@@ -91,3 +91,66 @@ def test_hostile_input_one_line_exit_2(tmp_path, capsys, argv, option, fragment)
     assert lines[0].startswith(f"gfb {argv[0]}: error:") and option in lines[0] and fragment in lines[0]
     assert stdout == "" and not out.exists()
     assert time.perf_counter() - t0 < 20
+
+
+# ------------------------------------------------------------------------------------- runup
+def test_runup_ramp_outputs_and_onset_after_the_linear_critical_speed(tmp_path, capsys):
+    """A quick run (49x7: coarser grids whirl into contact; fast ramp; the paper's D_W ~ optimum):
+    the speed column is the requested ramp, the whirl starts above the linear critical speed, the
+    waterfall's top line is subsynchronous."""
+    from gfb_env.params import BearingParameters
+
+    code, out, _ = run(
+        capsys, "runup", "--grid", "49x7", "--foil-damping", "4", "--speed-range", "28000", "42000",
+        "--acceleration", "30000", "--window", "128", "--touchdown", "0.001", "--orbit-rpm", "30000,41000",
+        "--out", tmp_path, "--json",
+    )  # fmt: skip
+    d = json.loads(out)
+    assert code == 0, d
+    b = BearingParameters()
+    assert b.rate_rpm_per_s(d["bearing_number_rate"]) == pytest.approx(30_000, rel=1e-12)
+    data = np.loadtxt(tmp_path / "trajectory.csv", delimiter=",", skiprows=1)
+    header = (tmp_path / "trajectory.csv").read_text().splitlines()[0]
+    assert header == "tau,time_s,speed_rpm,bearing_number,leg,xi_um,eta_um,min_film_thickness_um"
+    t, rpm = data[:, 1], data[:, 2]
+    assert np.allclose(rpm, 28_000 + 30_000 * t, rtol=1e-6)  # the ramp: 30 000 rpm/s from 28 000
+    assert rpm[-1] == pytest.approx(42_000, abs=5)
+    assert d["status"] == "done" and d["touchdown_speed_rpm"] is None
+    assert d["critical_speed_rpm"] < d["whirl_onset_speed_rpm"] < 42_000
+    assert 0.3 < d["top_speed_dominant_order"] < 0.5  # the whirl, not the 1x line (no unbalance)
+    assert d["max_whirl_amplitude_um"] > 0.02 * 50
+    assert d["min_film_thickness_um"] == pytest.approx(data[:, 7].min())
+    for name in ("waterfall.png", "orbits.png", "envelope.png"):
+        assert 20_000 < (tmp_path / name).stat().st_size < 200_000
+    env = np.loadtxt(tmp_path / "envelope.csv", delimiter=",", skiprows=1)
+    assert env.shape[1] == 10 and np.all(env[:, 4] <= env[:, 5])
+
+
+def test_runup_stops_at_touchdown_and_reports_the_speed(tmp_path, capsys):
+    code, out, _ = run(
+        capsys, "runup", "--grid", "33x7", "--foil-damping", "1", "--speed-range", "30000", "45000",
+        "--acceleration", "40000", "--window", "64", "--touchdown", "0.1", "--out", tmp_path, "--json",
+    )  # fmt: skip
+    d = json.loads(out)
+    assert code == 0 and d["status"] == "touchdown"
+    assert d["whirl_onset_speed_rpm"] <= d["touchdown_speed_rpm"] < 45_000
+    assert d["min_film_thickness_um"] < 0.15 * 50
+
+
+HOSTILE_RUNUP = [
+    (["runup", "--out", "{out}", "--acceleration", "1"], "--acceleration", "at most 250000"),
+    (["runup", "--out", "{out}", "--orbit-rpm", "90000"], "--orbit-rpm", "outside the speed range"),
+    (["runup", "--out", "{out}", "--orbit-rpm", "fast"], "--orbit-rpm", "comma-separated"),
+    (["runup", "--out", "{out}", "--window", "1"], "--window", "16 x --record-interval"),
+    (["runup", "--out", "{out}", "--record-interval", "5"], "--record-interval", "1x line"),
+    (["runup", "--out", "{out}", "--perturbation", "3", "0"], "--perturbation", "may move less than"),
+    (["runup", "--out", "{out}", "--speed-range", "9", "3"], "--speed-range", "0 < MIN < MAX"),
+    (["runup", "--out", "{file}/x"], "--out", "is a file"),
+]
+
+
+@pytest.mark.parametrize(
+    "argv,option,fragment", HOSTILE_RUNUP, ids=[" ".join(a[3:5]) for a, _, _ in HOSTILE_RUNUP]
+)
+def test_runup_hostile_input_one_line_exit_2(tmp_path, capsys, argv, option, fragment):
+    test_hostile_input_one_line_exit_2(tmp_path, capsys, argv, option, fragment)

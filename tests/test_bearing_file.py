@@ -226,3 +226,21 @@ def test_similar_bearing_same_onset_rpm_scaled_by_p_over_k(structure):
     cb = critical_bearing_number(GFBModel(structure, "41x7", bearing=b), 1.0, (0.3, 0.9))
     assert cb.critical_bearing_number == pytest.approx(ca.critical_bearing_number, abs=1e-9)
     assert cb.critical_speed_rpm == pytest.approx(ca.critical_speed_rpm * p / k, rel=1e-9)
+
+
+def test_map_with_a_bearing_file_uses_its_groups(tmp_path, capsys):
+    """The bearing travels through the sweep (as a dict in each point) into every map model."""
+    from gfb_env.analysis import critical_bearing_number
+
+    code, out, _ = run(
+        capsys, "map", "--bearing", SMALL, "--foil-stiffness", "1", "--foil-damping", "1", "--grid", "21x5",
+        "--out", tmp_path, "--json",
+    )  # fmt: skip
+    d = json.loads(out)
+    assert code == 0
+    b = BearingParameters.from_toml(SMALL)
+    ref = critical_bearing_number(GFBModel("rigid", "21x5", bearing=b), 1.0)
+    assert d["rigid_critical_bearing_number"] == pytest.approx(ref.critical_bearing_number, abs=1e-9)
+    rows = (tmp_path / "stability_map.csv").read_text().splitlines()
+    rigid = [r for r in rows if r.startswith("rigid")][0].split(",")
+    assert float(rigid[4]) == pytest.approx(b.speed_rpm_at(ref.critical_bearing_number), rel=1e-6)

@@ -21,6 +21,8 @@ __all__ = [
     "finite",
     "in_range",
     "grid_type",
+    "bearing_file",
+    "add_bearing_option",
     "check_output_dir",
 ]
 
@@ -98,6 +100,27 @@ def grid_type(text: str) -> Grid:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def bearing_file(text: str) -> BearingParameters:
+    """argparse type of ``--bearing``: :meth:`BearingParameters.from_toml` (read and validated while
+    the arguments are parsed, so a bad file is one line and exit 2 before any work)."""
+    try:
+        return BearingParameters.from_toml(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_bearing_option(p: argparse.ArgumentParser) -> None:
+    """``--bearing FILE``: the dimensional bearing (default: the paper's Table 1)."""
+    p.add_argument(
+        "--bearing",
+        type=bearing_file,
+        default=BearingParameters(),
+        metavar="FILE",
+        help="bearing file (TOML, top-level keys = BearingParameters field names in SI units, missing "
+        "keys take Table 1; see examples/bearings/). Default: the paper's Table 1",
+    )
+
+
 def check_output_dir(text: str, option: str = "--out", files: Iterable[str] = ()) -> Path:
     """The output folder ``text`` of ``option``, checked before any computation: it must be an
     existing folder or creatable (its first existing ancestor a folder), writable, and none of
@@ -130,7 +153,8 @@ def check_output_dir(text: str, option: str = "--out", files: Iterable[str] = ()
 
 
 def add_model_options(p: argparse.ArgumentParser, damping: bool = True) -> None:
-    """Options shared by every command that builds a model."""
+    """Options shared by every command that builds a model (``--bearing`` included)."""
+    add_bearing_option(p)
     p.add_argument(
         "--structure",
         choices=[s.value for s in Structure],
@@ -143,7 +167,8 @@ def add_model_options(p: argparse.ArgumentParser, damping: bool = True) -> None:
         type=positive("--foil-stiffness"),
         default=None,
         metavar="K",
-        help="nondimensional foil stiffness K_W (default: Walowit-Anno value of Table 1, 2.337)",
+        help="nondimensional foil stiffness K_W (default: the Walowit-Anno value of the bearing's bump "
+        "foil geometry; Table 1: 2.337)",
     )
     if damping:
         p.add_argument(
@@ -175,7 +200,15 @@ def add_speed_options(p: argparse.ArgumentParser, required: bool = True) -> None
 
 
 def model_from_args(args: argparse.Namespace) -> GFBModel:
-    return GFBModel(args.structure, grid=args.grid, foil_stiffness=args.foil_stiffness)
+    return GFBModel(
+        args.structure, grid=args.grid, bearing=bearing_from_args(args), foil_stiffness=args.foil_stiffness
+    )
+
+
+def bearing_from_args(args: argparse.Namespace) -> BearingParameters:
+    """The ``--bearing`` of the command (Table 1 when the command has no such option)."""
+    b = getattr(args, "bearing", None)
+    return b if b is not None else BearingParameters()
 
 
 def bearing_number_from_args(args: argparse.Namespace, bearing: BearingParameters) -> float:

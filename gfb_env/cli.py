@@ -19,6 +19,7 @@ import numpy as np
 from gfb_env import jsonio
 from gfb_env._cli_common import (
     OneLineParser,
+    add_bearing_option,
     add_model_options,
     add_speed_options,
     bearing_number_from_args,
@@ -32,7 +33,6 @@ from gfb_env._threads import set_thread_defaults
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel
-from gfb_env.params import BearingParameters
 
 __all__ = ["main", "build_parser"]
 
@@ -52,7 +52,7 @@ def _print_table(rows: dict) -> None:
 
 # ------------------------------------------------------------------------------------------------
 def cmd_params(args: argparse.Namespace) -> int:
-    b = BearingParameters()
+    b = args.bearing
     speed = args.speed_rpm if args.speed_rpm is not None else b.speed_rpm
     out = {
         "time_scale_s": b.time_scale_s,
@@ -70,6 +70,22 @@ def cmd_params(args: argparse.Namespace) -> int:
         print(jsonio.dumps(out))
     else:
         _print_table(out)
+    return 0
+
+
+def cmd_bearing(args: argparse.Namespace) -> int:
+    from gfb_env.bearing_report import bearing_report
+
+    out = bearing_report(args.bearing, args.speed_rpm)
+    out["parameters"] = args.bearing.as_dict()
+    if args.json:
+        print(jsonio.dumps(out))
+    else:
+        _print_table({k: v for k, v in out.items() if k not in ("warnings", "parameters")})
+        for w in out["warnings"]:
+            print(f"warning: {w}")
+        if not out["warnings"]:
+            print("no warnings (specific load, DellaCorte load capacity, C/R, surface speed)")
     return 0
 
 
@@ -247,19 +263,54 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         "params",
-        help="nondimensional parameters of Table 1",
-        description="Print the nondimensional groups of the paper's Table 1 bearing: time "
-        "scale T, bearing number Lambda, M, G, K_W (Walowit-Anno), kappa = R/L.",
+        help="nondimensional parameters of the bearing (Table 1 by default)",
+        description="Print the nondimensional groups of the bearing (--bearing FILE, default the "
+        "paper's Table 1): time scale T, bearing number Lambda, M, G, K_W (Walowit-Anno), kappa = R/L.",
     )
+    add_bearing_option(p)
     p.add_argument(
         "--speed-rpm",
         type=positive("--speed-rpm"),
         default=None,
         metavar="N",
-        help="rotor speed for the bearing number (default: 36 000 rpm of Table 1)",
+        help="rotor speed for the bearing number (default: speed_rpm of the bearing, Table 1: 36 000)",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     p.set_defaults(func=cmd_params)
+
+    p = sub.add_parser(
+        "bearing",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        help="design summary of a bearing file: groups, loads, sanity warnings",
+        description=(
+            "Read a bearing file (--bearing) and print its nondimensional groups (T, Lambda and Lambda\n"
+            "per 1000 rpm, M, G, M G, K_W by Walowit-Anno, kappa = R/L), its load figures and warnings:\n"
+            "  specific load   w = W/(L D), W = m g + F_L, D = 2R: warns above 34 kPa (5 psi, start-up\n"
+            "                  load), 140 kPa (20 psi) and 340 kPa (50 psi) (Barber-Nichols foil-bearing\n"
+            "                  application guide, barber-nichols.com);\n"
+            "  load capacity   DellaCorte's rule of thumb W_max = D_c (L D)(D Omega) [lbf; in; krpm]\n"
+            "                  with D_c = 0.1 lbf/(in^3 krpm) for first-generation bump foils (DellaCorte\n"
+            "                  & Valco, Tribol. Trans. 43(4), 2000): warns when W > W_max;\n"
+            "  clearance       C/R outside [5e-4, 5e-3] (usual for gas foil bearings);\n"
+            "  surface speed   Omega R outside 30-305 m/s (Barber-Nichols guide).\n"
+            "static_load_ratio = W / (p0 L D).\n\n"
+            "JSON keys: speed_rpm, time_scale_s, bearing_number, bearing_number_per_1000_rpm,\n"
+            "mass_parameter, gravity_parameter, load, foil_stiffness, kappa, static_load_n,\n"
+            "specific_load_kpa, static_load_ratio, dellacorte_capacity_n, dellacorte_load_ratio,\n"
+            "clearance_ratio, surface_speed_m_s, bump_pitch_m, warnings (list), parameters (the file's\n"
+            "fields with Table-1 defaults filled in)."
+        ),
+    )
+    add_bearing_option(p)
+    p.add_argument(
+        "--speed-rpm",
+        type=positive("--speed-rpm"),
+        default=None,
+        metavar="N",
+        help="speed of the bearing number, load capacity and surface speed (default: the file's speed_rpm)",
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    p.set_defaults(func=cmd_bearing)
 
     p = sub.add_parser(
         "equilibrium",
@@ -327,6 +378,9 @@ def build_parser() -> argparse.ArgumentParser:
         pass
     else:
         add_analysis_commands(sub)
+        from gfb_env.cli_engineering import add_engineering_commands
+
+        add_engineering_commands(sub)
     return parser
 
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from gfb_env import jsonio
 from gfb_env._cli_common import (
+    add_bearing_option,
     add_model_options,
     check_output_dir,
     grid_type,
@@ -24,6 +25,7 @@ from gfb_env._cli_common import (
     model_from_args,
     positive,
 )
+from gfb_env.params import BearingParameters
 
 __all__ = ["add_analysis_commands", "cmd_critical", "cmd_hysteresis", "cmd_map"]
 
@@ -202,7 +204,7 @@ def cmd_map(args: argparse.Namespace) -> int:
             f"--n-jobs must be -1 or lie in [1, {cpus}] (this machine's cores), got {args.n_jobs}"
         )
     try:  # the largest model of the map (viscoelastic) must fit the dense eigen-analysis
-        check_eigen_size(GFBModel("viscoelastic", args.grid))
+        check_eigen_size(GFBModel("viscoelastic", args.grid, bearing=args.bearing))
     except ValueError as exc:
         raise ValueError(f"--grid: {exc}") from None
     out = check_output_dir(args.out, "--out", _MAP_FILES)
@@ -215,6 +217,7 @@ def cmd_map(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         checkpoint=out / "sweep.jsonl",
         progress=not args.json,
+        bearing=None if args.bearing == BearingParameters() else args.bearing,
     )
     paths = write_stability_map(smap, out)
     d = {
@@ -338,6 +341,7 @@ def add_analysis_commands(subparsers) -> None:
         metavar="ADDRESS",
         help="Dask scheduler address, e.g. tcp://host:8786: run the sweep on that cluster",
     )
+    add_bearing_option(p)
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=cmd_map)
 

@@ -22,7 +22,11 @@ with its own ``T = 1.590e-4 s`` that is 7.95 s.  We use the formulas, never the 
 from __future__ import annotations
 
 import math
+import tomllib
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+from typing import Any
 
 __all__ = ["BearingParameters", "NondimensionalParameters", "check_positive"]
 
@@ -265,6 +269,70 @@ class BearingParameters:
     def rate_rpm_per_s(self, bearing_number_rate: float) -> float:
         """Speed ramp in rpm/s of a bearing-number rate ``dLambda/dtau``."""
         return bearing_number_rate / self.time_scale_s**2 / _RPM_TO_RAD_S
+
+    # ----------------------------------------------------------------------------------------
+    # bearing files
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any], source: str = "bearing") -> BearingParameters:
+        """A bearing from a flat mapping of field names to numbers; missing fields take Table 1.
+
+        Raises:
+            ValueError: one line naming ``source`` and the offending key: an unknown key (with the
+                nearest field name), a value that is not a number (strings, booleans, tables,
+                arrays), or a value the constructor refuses (non-positive, ``C/R >= 0.02``, ...).
+        """
+        if not isinstance(data, Mapping):
+            raise ValueError(f"{source}: must be a table of field = number, got {type(data).__name__}")
+        names = [f.name for f in fields(cls)]
+        for key, value in data.items():
+            if isinstance(value, Mapping):
+                raise ValueError(
+                    f"{source}: [{key}] is a table; the keys must be flat at the top level (field = number)"
+                )
+            if key not in names:
+                import difflib
+
+                near = difflib.get_close_matches(str(key), names, n=1)
+                hint = f" (did you mean {near[0]!r}?)" if near else f" (known keys: {', '.join(names)})"
+                raise ValueError(f"{source}: unknown key {key!r}{hint}")
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"{source}: {key} must be a number, got {value!r}")
+        values: dict[str, float | int] = {}
+        for key, value in data.items():
+            try:
+                v = float(value)
+            except OverflowError:
+                raise ValueError(f"{source}: {key} is too large, got {value!r}") from None
+            # bump_count = 26.0 is the integer 26; 26.5 stays a float and is refused below
+            values[key] = int(v) if key == "bump_count" and v.is_integer() else v
+        try:
+            return cls(**values)
+        except ValueError as exc:
+            raise ValueError(f"{source}: {exc}") from None
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> BearingParameters:
+        """A bearing from a TOML file of top-level ``field = number`` lines (see ``examples/bearings/``).
+
+        Keys are the field names of this class (SI units as in their names); missing keys take
+        Table 1.  Raises ``ValueError`` (one line naming the file and the key) for a missing or
+        unreadable file, a TOML syntax error, an unknown key or a bad value."""
+        p = Path(path).expanduser()
+        try:
+            text = p.read_bytes().decode("utf-8")
+        except FileNotFoundError:
+            raise ValueError(f"{path}: no such file") from None
+        except IsADirectoryError:
+            raise ValueError(f"{path}: is a folder, not a bearing file") from None
+        except UnicodeDecodeError:
+            raise ValueError(f"{path}: not a UTF-8 text (TOML) file") from None
+        except OSError as exc:
+            raise ValueError(f"{path}: cannot read ({exc.strerror})") from None
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ValueError(f"{path}: TOML syntax error: {str(exc).splitlines()[0]}") from None
+        return cls.from_mapping(data, source=str(path))
 
     def replace(self, **changes: float) -> BearingParameters:
         """A copy with some fields changed (validated again)."""

@@ -9,8 +9,11 @@ Layer: uses :mod:`gfb_env.params`, :mod:`gfb_env.model`, :mod:`gfb_env.integrato
   coast-down cross-check.
 * :mod:`~gfb_env.analysis.spectrum` -- FFT, dominant whirl frequency.
 * :mod:`~gfb_env.analysis.maps` -- stability map (Fig. 4) and hysteresis map, their files and loaders.
+* :mod:`~gfb_env.analysis.campbell` -- rotor-mode frequencies, damping ratio, log decrement vs speed.
+* :mod:`~gfb_env.analysis.runup` -- run-up / coast-down at a given acceleration, waterfall, envelopes.
 """
 
+from gfb_env.analysis.campbell import CampbellDiagram, campbell_diagram
 from gfb_env.analysis.continuation import EquilibriumBranch, continue_equilibria
 from gfb_env.analysis.maps import (
     HysteresisMap,
@@ -38,6 +41,7 @@ from gfb_env.analysis.periodic import (
     periodic_orbit_from_simulation,
     settle_whirl,
 )
+from gfb_env.analysis.runup import RunUpResult, Waterfall, run_up, waterfall
 from gfb_env.analysis.spectrum import (
     AmplitudeSpectrum,
     DominantFrequency,
@@ -57,6 +61,12 @@ from gfb_env.analysis.stability import (
 
 __all__ = [
     "AmplitudeSpectrum",
+    "CampbellDiagram",
+    "RunUpResult",
+    "Waterfall",
+    "campbell_diagram",
+    "run_up",
+    "waterfall",
     "CoastDownResult",
     "CriticalPoint",
     "CycleBranch",

@@ -27,7 +27,7 @@ import numpy as np
 from gfb_env.analysis.periodic import ShootingError, coast_down_fold, fold_bearing_number
 from gfb_env.analysis.stability import NoCriticalPointError, NoStableEquilibriumError, critical_bearing_number
 from gfb_env.model import GFBModel, Grid
-from gfb_env.params import check_positive
+from gfb_env.params import BearingParameters, check_positive
 from gfb_env.sweeps import run_sweep
 
 __all__ = [
@@ -69,9 +69,13 @@ def critical_point_task(
     bearing_min: float = 0.1,
     bearing_max: float = 3.0,
     scan_step: float = 0.05,
+    bearing: dict | None = None,
 ) -> dict:
-    """One map point: ``Lambda_c`` and its status (``ok``, ``no_stable_equilibrium``, ``stable_in_range``)."""
-    model = GFBModel(structure, Grid.parse(grid), foil_stiffness=foil_stiffness)
+    """One map point: ``Lambda_c`` and its status (``ok``, ``no_stable_equilibrium``, ``stable_in_range``).
+
+    ``bearing``: the fields of a :class:`~gfb_env.params.BearingParameters` (None: Table 1)."""
+    bp = None if bearing is None else BearingParameters.from_mapping(bearing)
+    model = GFBModel(structure, Grid.parse(grid), bearing=bp, foil_stiffness=foil_stiffness)
     try:
         cp = critical_bearing_number(model, foil_damping, (bearing_min, bearing_max), scan_step)
     except NoStableEquilibriumError as exc:
@@ -135,9 +139,12 @@ def compute_stability_map(
     progress: bool = True,
     scan_step: float = 0.05,
     bearing_max: float = 3.0,
+    bearing: BearingParameters | None = None,
 ) -> StabilityMap:
     """``Lambda_c`` over ``K_W x D_W`` (viscoelastic), over ``K_W`` (elastic) and the rigid value, by
-    :func:`gfb_env.sweeps.run_sweep` (parallel, resumable)."""
+    :func:`gfb_env.sweeps.run_sweep` (parallel, resumable).  ``bearing`` (default Table 1) sets M, G,
+    kappa and the rpm scale; it is part of each sweep point (and so of the checkpoint key) only when
+    given, so Table-1 checkpoints stay valid."""
     kws = np.asarray(foil_stiffness, dtype=float)
     dws = np.asarray(foil_damping, dtype=float)
     if kws.size == 0 or np.any(~np.isfinite(kws)) or np.any(kws <= 0):
@@ -146,6 +153,8 @@ def compute_stability_map(
         raise ValueError("foil_damping must be a non-empty list of positive numbers")
     Grid.parse(grid)
     common = {"grid": grid, "scan_step": scan_step, "bearing_max": bearing_max}
+    if bearing is not None:
+        common["bearing"] = bearing.as_dict()
     pts = [{"structure": "rigid", "foil_stiffness": 1.0, "foil_damping": 1.0, **common}]
     pts += [{"structure": "elastic", "foil_stiffness": float(k), "foil_damping": 1.0, **common} for k in kws]
     pts += [

@@ -1,0 +1,653 @@
+"""Engineering subcommands of the ``gfb`` CLI (issue 12): ``campbell`` and ``runup``.
+
+They work on any bearing file (``--bearing``) and write physical units by default (rpm, Hz, um),
+nondimensional ones with ``--nondimensional``.  Every option is checked before any work: a bad value
+is one line and exit code 2 (``ValueError`` from a handler, turned into exit 2 by :func:`gfb_env.cli.main`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from gfb_env import jsonio
+from gfb_env._cli_common import (
+    add_model_options,
+    check_output_dir,
+    finite,
+    in_range,
+    int_range,
+    model_from_args,
+    positive,
+)
+
+__all__ = ["add_engineering_commands", "cmd_campbell", "cmd_runup"]
+
+_FMT = argparse.RawDescriptionHelpFormatter
+#: Default speed range of ``campbell`` in Lambda (Table 1: 6 000 - 72 000 rpm).
+_CAMPBELL_LAMBDA = (0.1, 1.2)
+_CAMPBELL_FILES = ("campbell.csv", "campbell.png", "summary.json")
+
+
+def _range(args: argparse.Namespace, bearing, default_lambda: tuple[float, float]) -> tuple[float, float]:
+    """``(Lambda_min, Lambda_max)`` from ``--speed-range`` (rpm) or ``--bearing-range``, checked."""
+    if getattr(args, "speed_range", None) is not None:
+        lo, hi = args.speed_range
+        if not lo < hi:
+            raise ValueError(f"--speed-range must satisfy 0 < MIN < MAX, got {lo:g} {hi:g}")
+        return bearing.bearing_number_at(lo), bearing.bearing_number_at(hi)
+    if getattr(args, "bearing_range", None) is not None:
+        lo, hi = args.bearing_range
+        if not lo < hi:
+            raise ValueError(f"--bearing-range must satisfy 0 < MIN < MAX, got {lo:g} {hi:g}")
+        return lo, hi
+    return default_lambda
+
+
+def _eigen_model(args: argparse.Namespace):
+    from gfb_env.analysis.stability import check_eigen_size
+
+    model = model_from_args(args)
+    try:
+        check_eigen_size(model)
+    except ValueError as exc:
+        raise ValueError(f"--grid: {exc}") from None
+    return model
+
+
+# ------------------------------------------------------------------------------------ campbell
+def cmd_campbell(args: argparse.Namespace) -> int:
+    """Handler of ``gfb campbell``."""
+    from gfb_env.analysis.campbell import campbell_diagram
+
+    model = _eigen_model(args)
+    b = model.bearing
+    lo, hi = _range(args, b, _CAMPBELL_LAMBDA)
+    out = check_output_dir(args.out, "--out", _CAMPBELL_FILES)
+    t0 = time.perf_counter()
+    cd = campbell_diagram(model, np.linspace(lo, hi, args.n_speeds), args.foil_damping, args.modes)
+    wall = time.perf_counter() - t0
+    out.mkdir(parents=True, exist_ok=True)
+    f_hz, zeta, delta, ratio = cd.frequency_hz, cd.damping_ratio, cd.log_decrement, cd.whirl_frequency_ratio
+    with (out / "campbell.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(
+            [
+                "speed_rpm",
+                "bearing_number",
+                "mode",
+                "frequency_hz",
+                "angular_frequency",
+                "whirl_frequency_ratio",
+                "growth_rate",
+                "damping_ratio",
+                "log_decrement",
+                "rotor_participation",
+                "eccentricity",
+            ]
+        )
+        for j in range(len(cd.bearing_number)):
+            for k in range(args.modes):
+                ev = cd.eigenvalues[j, k]
+                w.writerow(
+                    [f"{x:.8g}" if isinstance(x, float) else x for x in (
+                        float(cd.speed_rpm[j]), float(cd.bearing_number[j]), k + 1, float(f_hz[j, k]),
+                        float(ev.imag), float(ratio[j, k]), float(ev.real), float(zeta[j, k]),
+                        float(delta[j, k]), float(cd.participation[j, k]), float(cd.eccentricity[j]),
+                    )]
+                )  # fmt: skip
+    _plot_campbell(cd, out / "campbell.png", args.nondimensional)
+    ok = np.isfinite(delta)
+    jmin = np.unravel_index(np.nanargmin(np.where(ok, delta, np.inf)), delta.shape) if ok.any() else None
+    on = cd.onset_eigenvalue
+    d = {
+        "structure": cd.structure,
+        "grid": cd.grid,
+        "foil_stiffness": cd.foil_stiffness,
+        "foil_damping": cd.foil_damping,
+        "modes": args.modes,
+        "n_speeds": len(cd.bearing_number),
+        "bearing_number_range": [lo, hi],
+        "speed_rpm_range": [b.speed_rpm_at(lo), b.speed_rpm_at(hi)],
+        "onset_bearing_number": cd.onset_bearing_number,
+        "onset_speed_rpm": cd.onset_speed_rpm,
+        "onset_frequency_hz": None if on is None else b.frequency_hz(on.imag),
+        "onset_whirl_frequency_ratio": None if on is None else on.imag / cd.onset_bearing_number,
+        "min_log_decrement": None if jmin is None else float(delta[jmin]),
+        "min_log_decrement_speed_rpm": None if jmin is None else float(cd.speed_rpm[jmin[0]]),
+        "equilibria_failed": int(np.sum(~np.isfinite(cd.eccentricity))),
+        "files": {k: str(out / k) for k in _CAMPBELL_FILES},
+        "wall_time_s": wall,
+    }
+    (out / "summary.json").write_text(jsonio.dumps(d, indent=2))
+    if args.json:
+        print(jsonio.dumps(d))
+    else:
+        print(f"{cd.structure} foil, K_W={cd.foil_stiffness:.4g}, D_W={cd.foil_damping:.4g}, grid {cd.grid}")
+        if cd.onset_bearing_number is None:
+            print("  no zero crossing of the log decrement in the range")
+        else:
+            print(
+                f"  onset (log decrement = 0): Lambda = {cd.onset_bearing_number:.5f}, "
+                f"{cd.onset_speed_rpm:.0f} rpm, whirl {d['onset_frequency_hz']:.1f} Hz "
+                f"({d['onset_whirl_frequency_ratio']:.3f} x)"
+            )
+        print(f"  wrote {', '.join(d['files'].values())} ({wall:.1f} s)")
+    return 0
+
+
+def _plot_campbell(cd, path: Path, nondimensional: bool) -> None:
+    from gfb_env._plotting import plt
+
+    if nondimensional:
+        x, xl = cd.bearing_number, r"bearing number $\Lambda$"
+        y, yl = cd.eigenvalues.imag, r"whirl frequency $\mathrm{Im}\,\lambda$ (rad per unit $\tau$)"
+        one_x = cd.bearing_number
+        x_on = cd.onset_bearing_number
+    else:
+        x, xl = cd.speed_rpm, "rotor speed (rpm)"
+        y, yl = cd.frequency_hz, "damped natural frequency (Hz)"
+        one_x = cd.speed_rpm / 60.0
+        x_on = cd.onset_speed_rpm
+    delta = cd.log_decrement
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 7.5), sharex=True, constrained_layout=True)
+    colours = ["tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:pink"]
+    for k in range(y.shape[1]):
+        a1.plot(x, y[:, k], "-", color=colours[k], lw=1.5, label=f"rotor mode {k + 1}")
+        bad = delta[:, k] < 0
+        a1.plot(x[bad], y[bad, k], "o", ms=4, color="tab:red", label="unstable" if k == 0 else None)
+        a2.plot(x, delta[:, k], "-", color=colours[k], lw=1.5, label=f"rotor mode {k + 1}")
+    a1.plot(x, one_x, "k--", lw=1, label="1x (synchronous)")
+    a1.plot(x, 0.5 * one_x, "k:", lw=1, label="0.5x")
+    top = np.nanmax(y[:, 0]) if np.isfinite(y[:, 0]).any() else 1.0
+    a1.set_ylim(0, 2.2 * top)
+    a1.set_ylabel(yl)
+    a1.legend(fontsize=8, loc="upper left")
+    a1.grid(alpha=0.3)
+    a1.set_title(
+        f"Campbell diagram: {cd.structure} foil, K_W={cd.foil_stiffness:.3g}, D_W={cd.foil_damping:.3g}, "
+        f"grid {cd.grid}",
+        fontsize=10,
+    )
+    a2.axhline(0, color="k", lw=0.8)
+    fin = delta[np.isfinite(delta)]
+    if fin.size:
+        a2.set_ylim(max(fin.min(), -3) - 0.3, min(fin.max(), 8) + 0.3)
+    if x_on is not None:
+        lab = f"onset {x_on:.4f}" if nondimensional else f"critical speed {x_on:.0f} rpm"
+        for a in (a1, a2):
+            a.axvline(x_on, color="tab:red", lw=1, ls="-.")
+        a2.plot([x_on], [0], "o", color="tab:red", label=lab)
+    a2.set_ylabel(r"logarithmic decrement $\delta = -2\pi\,\mathrm{Re}\lambda/\mathrm{Im}\lambda$")
+    a2.set_xlabel(xl)
+    a2.legend(fontsize=8, loc="upper right")
+    a2.grid(alpha=0.3)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+# --------------------------------------------------------------------------------------- runup
+#: Default speed range of ``runup`` in Lambda: the paper's Fig. 5 (Table 1: 30 000 - 50 000 rpm).
+_RUNUP_LAMBDA = (0.5, 0.833)
+_RUNUP_FILES = (
+    "trajectory.csv",
+    "envelope.csv",
+    "waterfall.png",
+    "orbits.png",
+    "envelope.png",
+    "summary.json",
+)
+#: Half peak-to-peak of xi (units of C) over a window above which the journal counts as whirling.
+WHIRL_THRESHOLD = 0.02
+
+
+def _speed_list(text: str, option: str) -> list[float]:
+    try:
+        vals = [float(x) for x in str(text).replace(",", " ").split()]
+    except ValueError:
+        raise ValueError(f"{option} must be a comma-separated list of speeds in rpm, got {text!r}") from None
+    if not vals or len(vals) > 12 or any(not (math.isfinite(v) and v > 0) for v in vals):
+        raise ValueError(f"{option} must list 1 to 12 positive speeds in rpm, got {text!r}")
+    return vals
+
+
+def check_runup_args(args: argparse.Namespace, model) -> dict:
+    """Every check of ``runup`` that needs no integration; returns the derived numbers."""
+    from gfb_env.analysis.runup import bearing_number_rate
+    from gfb_env.cli import MAX_DURATION, MAX_SAMPLES
+
+    b = model.bearing
+    lo, hi = _range(args, b, _RUNUP_LAMBDA)
+    rate = bearing_number_rate(model, args.acceleration)
+    legs = 2 if args.coast_down else 1
+    duration = legs * (hi - lo) / rate
+    if duration > MAX_DURATION:
+        need = args.acceleration * duration / MAX_DURATION
+        raise ValueError(
+            f"--acceleration {args.acceleration:g} rpm/s over {b.speed_rpm_at(lo):.0f}-"
+            f"{b.speed_rpm_at(hi):.0f} rpm takes tau = {duration:.4g}, at most {MAX_DURATION:g} "
+            f"(--acceleration >= {need:.4g})"
+        )
+    if duration / args.record_interval > MAX_SAMPLES:
+        raise ValueError(
+            f"--record-interval {args.record_interval:g} gives "
+            f"{duration / args.record_interval:.3g} samples, at most {MAX_SAMPLES}"
+        )
+    # the 1x line at the top speed (omega = Lambda per unit tau) must lie below the Nyquist frequency
+    nyquist_dt = math.pi / (1.25 * hi)
+    if args.record_interval > nyquist_dt:
+        raise ValueError(
+            f"--record-interval {args.record_interval:g} cannot resolve the 1x line at Lambda={hi:.4g}: "
+            f"at most {nyquist_dt:.3g}"
+        )
+    if args.window < 16 * args.record_interval or args.window > duration / legs:
+        raise ValueError(
+            f"--window {args.window:g} must lie in [16 x --record-interval, one leg = "
+            f"{duration / legs:.4g}] tau"
+        )
+    lo_rpm, hi_rpm = b.speed_rpm_at(lo), b.speed_rpm_at(hi)
+    if args.orbit_rpm is None:
+        orbit = [lo_rpm + f * (hi_rpm - lo_rpm) for f in (0.25, 0.5, 0.75, 0.98)]
+    else:
+        orbit = _speed_list(args.orbit_rpm, "--orbit-rpm")
+        bad = [v for v in orbit if not lo_rpm <= v <= hi_rpm]
+        if bad:
+            raise ValueError(
+                f"--orbit-rpm {bad[0]:g} lies outside the speed range {lo_rpm:.0f}-{hi_rpm:.0f} rpm"
+            )
+    out = check_output_dir(args.out, "--out", _RUNUP_FILES)
+    return {"lo": lo, "hi": hi, "rate": rate, "duration": duration, "orbit_rpm": orbit, "out": out}
+
+
+def cmd_runup(args: argparse.Namespace) -> int:
+    """Handler of ``gfb runup``."""
+    from gfb_env.analysis.runup import envelopes, run_up, waterfall
+    from gfb_env.analysis.stability import StabilityAnalysisError, critical_bearing_number
+    from gfb_env.cli import check_perturbation
+    from gfb_env.integrator import find_equilibrium
+
+    model = _eigen_model(args)
+    b = model.bearing
+    c = check_runup_args(args, model)
+    lo, hi, out = c["lo"], c["hi"], c["out"]
+    check_perturbation(model, find_equilibrium(model, lo), args.perturbation, args.touchdown)
+    t0 = time.perf_counter()
+    try:  # the linear onset, for the pictures (the run itself does not need it)
+        cp = critical_bearing_number(model, args.foil_damping, (0.05, max(3.0, 2 * hi)), 0.05)
+        lam_c = cp.critical_bearing_number
+    except StabilityAnalysisError:
+        lam_c = None
+    res = run_up(
+        model,
+        args.foil_damping,
+        (lo, hi),
+        c["rate"],
+        coast_down=args.coast_down,
+        perturbation=tuple(args.perturbation),
+        record_interval=args.record_interval,
+        touchdown=args.touchdown,
+        progress=not args.json,
+    )
+    tr = res.trajectory
+    env = envelopes(res, args.window)
+    wf = waterfall(res, args.window)
+    out.mkdir(parents=True, exist_ok=True)
+    um = b.clearance_m * 1e6
+    rpm = np.array([b.speed_rpm_at(x) for x in tr.bearing_number])
+    np.savetxt(
+        out / "trajectory.csv",
+        np.column_stack(
+            [
+                tr.tau,
+                tr.tau * b.time_scale_s,
+                rpm,
+                tr.bearing_number,
+                res.leg,
+                tr.xi * um,
+                tr.eta * um,
+                tr.min_film_thickness * um,
+            ]
+        ),  # fmt: skip
+        delimiter=",",
+        header="tau,time_s,speed_rpm,bearing_number,leg,xi_um,eta_um,min_film_thickness_um",
+        comments="",
+        fmt="%.8g",
+    )
+    env_rpm = np.array([b.speed_rpm_at(x) for x in env["bearing_number"]])
+    amp = 0.5 * (env["xi_max"] - env["xi_min"])
+    np.savetxt(
+        out / "envelope.csv",
+        np.column_stack(
+            [
+                env["tau"] * b.time_scale_s,
+                env_rpm,
+                env["bearing_number"],
+                env["leg"],
+                env["xi_min"] * um,
+                env["xi_max"] * um,
+                env["eta_min"] * um,
+                env["eta_max"] * um,
+                env["eps_max"] * um,
+                env["hmin"] * um,
+            ]
+        ),  # fmt: skip
+        delimiter=",",
+        header="time_s,speed_rpm,bearing_number,leg,xi_min_um,xi_max_um,eta_min_um,eta_max_um,"
+        "max_eccentricity_um,min_film_thickness_um",
+        comments="",
+        fmt="%.8g",
+    )
+    whirl = amp > WHIRL_THRESHOLD
+    up, down = whirl & (env["leg"] == 0), whirl & (env["leg"] == 1)
+    onset = float(env_rpm[np.argmax(up)]) if up.any() else None
+    collapse = float(env_rpm[np.nonzero(down)[0][-1]]) if down.any() else None
+    # dominant line of the last run-up window, as a multiple of the rotor speed
+    j_top = int(np.nonzero(wf.leg == 0)[0][-1])
+    k = 1 + int(np.argmax(wf.amplitude[j_top, 1:]))
+    ratio = float(wf.omega[k] / wf.bearing_number[j_top])
+    title = (
+        f"{model.structure.value} foil, K_W={model.foil_stiffness:.3g}, D_W={args.foil_damping:.3g}, "
+        f"{args.acceleration:g} rpm/s"
+    )
+    crit_rpm = None if lam_c is None else b.speed_rpm_at(lam_c)
+    _plot_waterfall(wf, b, out / "waterfall.png", args.nondimensional, title, ratio)
+    _plot_orbits(res, b, c["orbit_rpm"], args.window, out / "orbits.png", args.nondimensional, title)
+    _plot_envelope(env, b, out / "envelope.png", args.nondimensional, title, lam_c)
+    d = {
+        "structure": model.structure.value,
+        "grid": str(model.grid),
+        "foil_stiffness": float(model.foil_stiffness),
+        "foil_damping": args.foil_damping,
+        "speed_rpm_range": [b.speed_rpm_at(lo), b.speed_rpm_at(hi)],
+        "bearing_number_range": [lo, hi],
+        "acceleration_rpm_s": args.acceleration,
+        "bearing_number_rate": c["rate"],
+        "coast_down": bool(args.coast_down),
+        "duration_tau": float(tr.tau[-1]),
+        "duration_s": float(tr.tau[-1]) * b.time_scale_s,
+        "status": res.status,
+        "message": res.message,
+        "touchdown_speed_rpm": (
+            None if res.touchdown_tau is None else float(np.interp(res.touchdown_tau, tr.tau, rpm))
+        ),
+        "critical_speed_rpm": crit_rpm,
+        "whirl_onset_speed_rpm": onset,
+        "whirl_collapse_speed_rpm": collapse,
+        "max_whirl_amplitude_um": float(amp.max()) * um,
+        "max_eccentricity_um": float(tr.eccentricity.max()) * um,
+        "min_film_thickness_um": float(tr.min_film_thickness.min()) * um,
+        "top_speed_dominant_order": ratio,
+        "steps": res.steps,
+        "files": {k: str(out / k) for k in _RUNUP_FILES},
+        "wall_time_s": time.perf_counter() - t0,
+    }
+    (out / "summary.json").write_text(jsonio.dumps(d, indent=2))
+    if args.json:
+        print(jsonio.dumps(d))
+    else:
+        print(title + f", grid {model.grid}")
+        print(f"  status: {res.status} {res.message}".rstrip())
+        print(f"  linear critical speed: {crit_rpm and round(crit_rpm)} rpm")
+        print(f"  whirl onset on the run-up: {onset and round(onset)} rpm; collapse on coast-down: "
+              f"{collapse and round(collapse)} rpm")  # fmt: skip
+        print(
+            f"  max whirl amplitude {d['max_whirl_amplitude_um']:.1f} um, "
+            f"min film {d['min_film_thickness_um']:.1f} um"
+        )
+        print(f"  wrote {out}/ ({d['wall_time_s']:.1f} s)")
+    return 0 if res.status in ("done", "touchdown") else 1
+
+
+def _plot_waterfall(wf, b, path: Path, nondim: bool, title: str, ratio: float) -> None:
+    from gfb_env._plotting import plt
+
+    legs = [leg for leg in (0, 1) if (wf.leg == leg).any()]
+    fig, axes = plt.subplots(
+        1, len(legs), figsize=(6 * len(legs), 6.5), squeeze=False, constrained_layout=True
+    )
+    hz = 1.0 / (2 * math.pi * b.time_scale_s)
+    x = wf.omega if nondim else wf.omega * hz
+    speeds = wf.bearing_number if nondim else np.array([b.speed_rpm_at(v) for v in wf.bearing_number])
+    amp = wf.amplitude * (1.0 if nondim else b.clearance_m * 1e6)
+    # at most 40 spectra a leg, the tallest peak 4 line spacings high
+    n_lines = min(40, max(int(np.sum(wf.leg == leg)) for leg in legs))
+    step = (speeds.max() - speeds.min()) / max(n_lines - 1, 1) if len(speeds) > 1 else 1.0
+    scale = 4 * step / max(float(amp[:, 1:].max()), 1e-12)
+    fmax = 1.6 * (speeds.max() if nondim else speeds.max() / 60.0)
+    for ax, leg in zip(axes[0], legs):
+        idx = np.nonzero(wf.leg == leg)[0]
+        idx = idx[np.unique(np.linspace(0, len(idx) - 1, min(len(idx), 40)).astype(int))]
+        for j in idx[::-1] if leg == 0 else idx:
+            ax.fill_between(x, speeds[j], speeds[j] + scale * amp[j], color="white", zorder=j)
+            ax.plot(x, speeds[j] + scale * amp[j], color="k", lw=0.6, zorder=j)
+        sp = np.array([speeds.min(), speeds.max()])
+        f1 = sp if nondim else sp / 60.0
+        ax.plot(f1, sp, "r--", lw=1, label="1x", zorder=10_000)
+        ax.plot(0.43 * f1, sp, "b--", lw=1, label="0.43x", zorder=10_000)
+        ax.set_xlim(0, fmax)
+        ax.set_xlabel(r"angular frequency $\omega$ (rad per unit $\tau$)" if nondim else "frequency (Hz)")
+        ax.set_ylabel(r"$\Lambda$" if nondim else "rotor speed (rpm)")
+        ax.set_title(
+            ("run-up" if leg == 0 else "coast-down") + f" (dominant at top: {ratio:.2f}x)", fontsize=9
+        )
+        ax.legend(loc="lower right", fontsize=8)
+    unit = "C" if nondim else "um"
+    fig.suptitle(f"Waterfall of xi ({unit}, Hann windows): {title}", fontsize=10)
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+def _plot_orbits(res, b, orbit_rpm, window, path: Path, nondim: bool, title: str) -> None:
+    from gfb_env._plotting import plt
+
+    tr = res.trajectory
+    rpm = np.array([b.speed_rpm_at(v) for v in tr.bearing_number])
+    up = res.leg == 0
+    c = 1.0 if nondim else b.clearance_m * 1e6
+    n = len(orbit_rpm)
+    fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 3.6), squeeze=False, constrained_layout=True)
+    th = np.linspace(0, 2 * np.pi, 200)
+    dt = float(tr.tau[1] - tr.tau[0])
+    half = max(2, int(window / dt / 2))
+    for ax, v in zip(axes[0], orbit_rpm):
+        j = int(np.argmin(np.where(up, np.abs(rpm - v), np.inf)))
+        i = slice(max(0, j - half), j + half)
+        ax.plot(c * np.sin(th), c * np.cos(th), "k--", lw=0.7)
+        ax.plot(c * tr.xi[i], c * tr.eta[i], lw=0.7, color="tab:red")
+        ax.set_aspect("equal")
+        ax.invert_yaxis()
+        ax.set_title(f"Lambda={tr.bearing_number[j]:.3f}" if nondim else f"{rpm[j]:.0f} rpm", fontsize=9)
+        ax.set_xlabel(r"$\xi$ (C)" if nondim else "x (um)")
+    axes[0][0].set_ylabel(r"$\eta$ (C, down)" if nondim else "y (um, down)")
+    fig.suptitle(f"Orbits on the run-up ({window:g} tau each): {title}", fontsize=9)
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+def _plot_envelope(env, b, path: Path, nondim: bool, title: str, lam_c: float | None) -> None:
+    from gfb_env._plotting import plt
+
+    c = 1.0 if nondim else b.clearance_m * 1e6
+    t = env["tau"] if nondim else env["tau"] * b.time_scale_s
+    sp = env["bearing_number"] if nondim else np.array([b.speed_rpm_at(v) for v in env["bearing_number"]])
+    fig, ax = plt.subplots(4, 1, figsize=(8, 9), constrained_layout=True)
+    ax[0].plot(t, sp, "k-")
+    ax[0].set_ylabel(r"$\Lambda$" if nondim else "speed (rpm)")
+    for a, name, col in ((ax[1], "xi", "tab:red"), (ax[2], "eta", "tab:blue")):
+        a.plot(t, c * env[f"{name}_min"], color=col, lw=0.9)
+        a.plot(t, c * env[f"{name}_max"], color=col, lw=0.9)
+        a.set_ylabel(
+            (f"$\\{name}$ envelope (C)") if nondim else f"{'x' if name == 'xi' else 'y'} envelope (um)"
+        )
+    for a in ax[:3]:
+        a.sharex(ax[0])
+        a.grid(alpha=0.3)
+    ax[2].set_xlabel(r"$\tau$" if nondim else "time (s)")
+    amp = 0.5 * (env["xi_max"] - env["xi_min"]) * c
+    for leg, style, lab in ((0, "-", "run-up"), (1, "--", "coast-down")):
+        m = env["leg"] == leg
+        if m.any():
+            ax[3].plot(sp[m], amp[m], "k" + style, lw=1.2, label=lab)
+    if lam_c is not None:
+        xc = lam_c if nondim else b.speed_rpm_at(lam_c)
+        lab = f"linear onset Lambda_c = {xc:.4f}" if nondim else f"linear critical speed {xc:.0f} rpm"
+        ax[3].axvline(xc, color="tab:red", ls="-.", lw=1, label=lab)
+    ax[3].set_xlabel(r"$\Lambda$" if nondim else "speed (rpm)")
+    ax[3].set_ylabel("whirl amplitude (C)" if nondim else "whirl amplitude (um)")
+    ax[3].legend(fontsize=8)
+    ax[3].grid(alpha=0.3)
+    fig.suptitle(f"Run-up envelopes (paper Fig. 5): {title}", fontsize=10)
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+# ------------------------------------------------------------------------------------- parser
+def _add_range_options(p: argparse.ArgumentParser, default_text: str) -> None:
+    g = p.add_mutually_exclusive_group()
+    g.add_argument(
+        "--speed-range",
+        type=positive("--speed-range"),
+        nargs=2,
+        metavar=("MIN", "MAX"),
+        help=f"speed range in rpm (default: {default_text})",
+    )
+    g.add_argument(
+        "--bearing-range",
+        type=positive("--bearing-range"),
+        nargs=2,
+        metavar=("MIN", "MAX"),
+        help="the same range as bearing numbers Lambda",
+    )
+
+
+def add_engineering_commands(subparsers) -> None:
+    """Add ``campbell`` and ``runup`` to an :mod:`argparse` subparsers object."""
+    p = subparsers.add_parser(
+        "campbell",
+        formatter_class=_FMT,
+        help="Campbell diagram and log decrement of the rotor whirl modes vs speed: CSV + PNG + JSON",
+        description=(
+            "Campbell diagram: at each speed the static equilibrium is solved and the eigenvalues and\n"
+            "eigenvectors of the Jacobian are computed; the rotor-dominated modes are those with the\n"
+            "largest share of the eigenvector in the rotor states (xi, eta, xi', eta') (see\n"
+            "gfb_env.analysis.campbell).  Frequency f = Im(lambda)/(2 pi T) Hz, damping ratio\n"
+            "zeta = -Re(lambda)/|lambda|, log decrement delta = -2 pi Re(lambda)/Im(lambda) (ROSS\n"
+            "conventions).  The onset (delta = 0) is refined by Brent's method: it equals the critical\n"
+            "speed of `gfb critical`.\n\n"
+            "Writes OUT/campbell.csv (speed_rpm, bearing_number, mode, frequency_hz, angular_frequency,\n"
+            "whirl_frequency_ratio, growth_rate, damping_ratio, log_decrement, rotor_participation,\n"
+            "eccentricity), OUT/campbell.png (Campbell diagram with the 1x and 0.5x lines; log\n"
+            "decrement with the critical speed) and OUT/summary.json.\n\n"
+            "JSON keys: structure, grid, foil_stiffness, foil_damping, modes, n_speeds,\n"
+            "bearing_number_range, speed_rpm_range, onset_bearing_number, onset_speed_rpm,\n"
+            "onset_frequency_hz, onset_whirl_frequency_ratio, min_log_decrement,\n"
+            "min_log_decrement_speed_rpm, equilibria_failed, files, wall_time_s."
+        ),
+    )
+    add_model_options(p)
+    _add_range_options(p, "Lambda 0.1 to 1.2 of the bearing; Table 1: 6 005 - 72 060 rpm")
+    p.add_argument(
+        "--n-speeds",
+        type=int_range("--n-speeds", 3, 1000),
+        default=45,
+        metavar="N",
+        help="number of equally spaced speeds, 3..1000 (default 45; ~0.1 s each on 79x7)",
+    )
+    p.add_argument(
+        "--modes",
+        type=int_range("--modes", 1, 6),
+        default=2,
+        metavar="K",
+        help="rotor modes kept, 1..6 (default 2: the whirl mode and the second rotor mode)",
+    )
+    p.add_argument(
+        "--nondimensional",
+        action="store_true",
+        help="plot over Lambda with angular frequencies per unit tau (default: rpm and Hz)",
+    )
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.set_defaults(func=cmd_campbell)
+
+    p = subparsers.add_parser(
+        "runup",
+        formatter_class=_FMT,
+        help="transient run-up (and coast-down) at a given acceleration: waterfall, orbits, envelopes",
+        description=(
+            "Transient run-up at --acceleration rpm/s from the perturbed static equilibrium at the first\n"
+            "speed (optionally back down with --coast-down), integrated with the adaptive trapezoidal\n"
+            "rule (Lambda ramps linearly within each step).  No unbalance yet (see\n"
+            "gfb_env.analysis.runup).  Writes OUT/trajectory.csv (tau, time_s, speed_rpm,\n"
+            "bearing_number, leg, xi_um, eta_um, min_film_thickness_um), OUT/envelope.csv (per window),\n"
+            "OUT/waterfall.png (spectra of x vs speed with the 1x and 0.43x lines), OUT/orbits.png\n"
+            "(at --orbit-rpm), OUT/envelope.png (the paper's Fig. 5 in s, rpm and um, and the whirl\n"
+            "amplitude vs speed with the linear critical speed) and OUT/summary.json.\n\n"
+            "JSON keys: structure, grid, foil_stiffness, foil_damping, speed_rpm_range,\n"
+            "bearing_number_range, acceleration_rpm_s, bearing_number_rate, coast_down, duration_tau,\n"
+            "duration_s, status, message, touchdown_speed_rpm, critical_speed_rpm,\n"
+            "whirl_onset_speed_rpm, whirl_collapse_speed_rpm (half peak-to-peak x above 0.02 C),\n"
+            "max_whirl_amplitude_um, max_eccentricity_um, min_film_thickness_um,\n"
+            "top_speed_dominant_order, steps, files, wall_time_s."
+        ),
+    )
+    add_model_options(p)
+    _add_range_options(
+        p, "Lambda 0.5 to 0.833 of the bearing, the paper's Fig. 5; Table 1: 30 025 - 50 025 rpm"
+    )
+    p.add_argument(
+        "--acceleration",
+        type=positive("--acceleration"),
+        default=2500.0,
+        metavar="RPM_PER_S",
+        help="speed ramp in rpm/s (default 2500, about the paper's Fig. 5); the run may last at most "
+        "tau = 250 000",
+    )
+    p.add_argument("--coast-down", action="store_true", help="ramp back down to the first speed")
+    p.add_argument(
+        "--orbit-rpm",
+        default=None,
+        metavar="N1,N2,...",
+        help="speeds (rpm) of the orbit plots on the run-up, 1..12 in the range (default: 4 spread over it)",
+    )
+    p.add_argument(
+        "--window",
+        type=positive("--window"),
+        default=256.0,
+        metavar="TAU",
+        help="window of the waterfall spectra and envelopes in tau (default 256; Table 1: 0.041 s)",
+    )
+    p.add_argument(
+        "--record-interval",
+        type=positive("--record-interval"),
+        default=0.5,
+        metavar="DTAU",
+        help="sampling interval in tau (default 0.5); must resolve the 1x line at the top speed",
+    )
+    p.add_argument(
+        "--perturbation",
+        type=finite("--perturbation"),
+        nargs=2,
+        default=[0.01, 0.0],
+        metavar=("DXI", "DETA"),
+        help="initial displacement from the equilibrium (units of C), the seed of the whirl. Default: 0.01 0",
+    )
+    p.add_argument(
+        "--touchdown",
+        type=in_range("--touchdown", 0.0, 1.0),
+        default=0.01,
+        metavar="HMIN",
+        help="min film thickness (units of C) that stops the run as a touchdown. Default: %(default)s",
+    )
+    p.add_argument(
+        "--nondimensional",
+        action="store_true",
+        help="plot in Lambda, tau and units of C (default: rpm, s, um)",
+    )
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.set_defaults(func=cmd_runup)

@@ -25,7 +25,8 @@ CHILD = r"""
 import json, time
 import gfb_env
 from gfb_env.model import GFBModel
-from gfb_env.integrator import TrapezoidalIntegrator, find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
+from gfb_env.integrator import TrapezoidalIntegrator
 m = GFBModel("viscoelastic", grid="79x7", foil_stiffness=1.0)
 s0 = find_equilibrium(m, 0.6)
 r = m.layout.rotor(s0)

@@ -269,7 +269,7 @@ def cmd_runup(args: argparse.Namespace) -> int:
     from gfb_env.analysis.runup import envelopes, run_up, waterfall
     from gfb_env.analysis.stability import StabilityAnalysisError, critical_bearing_number
     from gfb_env.cli import check_perturbation
-    from gfb_env.integrator import find_equilibrium
+    from gfb_env.equilibrium import find_equilibrium
 
     model = _eigen_model(args)
     b = model.bearing

@@ -38,7 +38,7 @@ import scipy.linalg as sla
 from scipy.optimize import brentq
 
 from gfb_env.analysis.stability import check_eigen_size
-from gfb_env.integrator import EquilibriumError, find_equilibrium
+from gfb_env.equilibrium import EquilibriumError, find_equilibrium
 from gfb_env.model import GFBModel
 from gfb_env.params import check_positive
 

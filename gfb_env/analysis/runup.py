@@ -27,7 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from gfb_env.analysis.spectrum import amplitude_spectrum
-from gfb_env.integrator import Trajectory, TrapezoidalIntegrator, find_equilibrium
+from gfb_env.equilibrium import find_equilibrium
+from gfb_env.integrator import Trajectory, TrapezoidalIntegrator
 from gfb_env.model import GFBModel
 from gfb_env.params import check_positive
 

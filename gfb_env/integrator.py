@@ -64,6 +64,7 @@ from numba import njit
 
 from gfb_env import _kernels as K
 from gfb_env.equilibrium import EquilibriumError, find_equilibrium  # re-exported (moved there)
+from gfb_env.integrator_options import IntegratorOptions
 from gfb_env.model import GFBModel
 
 __all__ = [
@@ -734,41 +735,40 @@ class TrapezoidalIntegrator:
         bearing_number: float,
         foil_damping: float = 1.0,
         tau: float = 0.0,
-        rtol: float = 3e-4,
-        atol: float = 3e-4,
-        first_step: float = 0.01,
-        max_step: float = 2.0,
-        min_step: float = 1e-7,
+        rtol: float = IntegratorOptions.rtol,
+        atol: float = IntegratorOptions.atol,
+        first_step: float = IntegratorOptions.first_step,
+        max_step: float = IntegratorOptions.max_step,
+        min_step: float = IntegratorOptions.min_step,
         touchdown_film_thickness: float = 0.01,
-        max_newton_iterations: int = 6,
-        newton_tol: float = 0.3,
-        factorization_ratio: float = 2.0,
-        slow_newton_iterations: int = 3,
+        max_newton_iterations: int = IntegratorOptions.max_newton_iterations,
+        newton_tol: float = IntegratorOptions.newton_tol,
+        factorization_ratio: float = IntegratorOptions.factorization_ratio,
+        slow_newton_iterations: int = IntegratorOptions.slow_newton_iterations,
     ):
-        for name, v in (
-            ("rtol", rtol),
-            ("atol", atol),
-            ("first_step", first_step),
-            ("max_step", max_step),
-            ("min_step", min_step),
-            ("newton_tol", newton_tol),
-        ):
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be finite and positive, got {v!r}")
+        # one owner of the settings' defaults and validation (also used by the environments)
+        self.options = IntegratorOptions(
+            rtol=rtol,
+            atol=atol,
+            first_step=first_step,
+            max_step=max_step,
+            min_step=min_step,
+            max_newton_iterations=max_newton_iterations,
+            newton_tol=newton_tol,
+            factorization_ratio=factorization_ratio,
+            slow_newton_iterations=slow_newton_iterations,
+        )
         if not (math.isfinite(touchdown_film_thickness) and 0 <= touchdown_film_thickness < 1):
             raise ValueError(f"touchdown_film_thickness must lie in [0, 1), got {touchdown_film_thickness!r}")
-        if int(max_newton_iterations) < 1:
-            raise ValueError(f"max_newton_iterations must be >= 1, got {max_newton_iterations!r}")
         self.model = model
-        self.rtol, self.atol = float(rtol), float(atol)
-        self.first_step, self.max_step, self.min_step = float(first_step), float(max_step), float(min_step)
+        o = self.options
+        self.rtol, self.atol = o.rtol, o.atol
+        self.first_step, self.max_step, self.min_step = o.first_step, o.max_step, o.min_step
         self.touchdown_film_thickness = float(touchdown_film_thickness)
-        self.max_newton_iterations = int(max_newton_iterations)
-        self.newton_tol = float(newton_tol)
-        if not factorization_ratio >= 1.0:
-            raise ValueError(f"factorization_ratio must be >= 1, got {factorization_ratio!r}")
-        self.factorization_ratio = float(factorization_ratio)
-        self.slow_newton_iterations = int(slow_newton_iterations)
+        self.max_newton_iterations = o.max_newton_iterations
+        self.newton_tol = o.newton_tol
+        self.factorization_ratio = o.factorization_ratio
+        self.slow_newton_iterations = o.slow_newton_iterations
         self._kernel_args = model.kernel_args()
         self._jacobian = _Jacobian(**model.new_blocks())
         nc, m = model.grid.n_columns, model.layout.block_size

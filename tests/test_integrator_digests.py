@@ -11,17 +11,24 @@ import json
 from pathlib import Path
 
 import pytest
-from integrator_digests import INTEGRATOR_CASES
+from integrator_digests import INTEGRATOR_CASES, PLATFORM_KEY, platform_fingerprint
 
 WANT = json.loads((Path(__file__).parent / "data" / "integrator_digests.json").read_text())
+RECORDED_ON = WANT.pop(PLATFORM_KEY)
 
 
 def test_every_recorded_case_is_run():
     assert set(WANT) == set(INTEGRATOR_CASES)
+    assert set(RECORDED_ON) == set(platform_fingerprint())
 
 
 @pytest.mark.parametrize("case", sorted(INTEGRATOR_CASES))
 def test_results_are_bit_for_bit_unchanged(case):
+    here = platform_fingerprint()
+    if here != RECORDED_ON:
+        # the same code gives other last bits on another CPU or compiler: the digests only pin a
+        # refactoring on the machine that recorded them (the physics tests hold everywhere)
+        pytest.skip(f"digests recorded on {RECORDED_ON}, this machine is {here}; regenerate to pin here")
     got = INTEGRATOR_CASES[case]()
     want = WANT[case]
     assert got.keys() == want.keys()

@@ -39,6 +39,7 @@ from gfb_env.analysis.task_constants import (
 )
 from gfb_env.envs._data import NOMINAL_BEARING, TASK_CONSTANTS_PATH
 from gfb_env.model import GFBModel, Grid
+from gfb_env.provenance import platform_fingerprint
 
 D_MIN, D_MAX = 0.1, 10.0
 DAMPINGS = np.geomspace(D_MIN, D_MAX, 13)
@@ -52,6 +53,7 @@ def main() -> None:
     ap.add_argument("--whirl-only", action="store_true", help="recompute only the whirl start of --grids")
     args = ap.parse_args()
     out = {
+        "made_on": platform_fingerprint(),  # the whirl state's last digits depend on the machine
         "bearing": NOMINAL_BEARING.as_dict(),
         "foil_stiffness": NOMINAL_BEARING.foil_stiffness,
         "damping_range": [D_MIN, D_MAX],

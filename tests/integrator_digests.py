@@ -26,6 +26,7 @@ import numpy as np
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel
+from gfb_env.provenance import platform_fingerprint
 
 
 def digest(x) -> str:
@@ -165,23 +166,6 @@ INTEGRATOR_CASES: dict[str, Callable[[], dict[str, str]]] = {
     "failures": case_failures,
     "snapshot": case_snapshot,
 }
-
-
-def platform_fingerprint() -> dict[str, str]:
-    """What the last bits depend on besides the code: the CPU that numba compiles for and the versions
-    of numba, llvmlite and numpy (its LAPACK/BLAS kernels are chosen per CPU too).  Measured: the same
-    code took 24 292 steps on the machine of 2026-11-22 and 24 336 on an AMD znver4 (max eps equal to
-    5 digits), so bit-identity is a property of one machine."""
-    import llvmlite
-    import llvmlite.binding as llvm
-    import numba
-
-    return {
-        "cpu": llvm.get_host_cpu_name(),
-        "numba": numba.__version__,
-        "llvmlite": llvmlite.__version__,
-        "numpy": np.__version__,
-    }
 
 
 PLATFORM_KEY = "_platform"

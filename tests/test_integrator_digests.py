@@ -11,7 +11,9 @@ import json
 from pathlib import Path
 
 import pytest
-from integrator_digests import INTEGRATOR_CASES, PLATFORM_KEY, platform_fingerprint
+from integrator_digests import INTEGRATOR_CASES, PLATFORM_KEY
+
+from gfb_env.provenance import platform_fingerprint
 
 WANT = json.loads((Path(__file__).parent / "data" / "integrator_digests.json").read_text())
 RECORDED_ON = WANT.pop(PLATFORM_KEY)

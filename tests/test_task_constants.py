@@ -18,6 +18,7 @@ from gfb_env.envs._data import NOMINAL_BEARING, load_task_constants
 from gfb_env.envs.base import DEFAULT_GRID
 from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel, Grid
+from gfb_env.provenance import platform_fingerprint
 
 # the stability numbers are eigenvalue roots (1e-12 run to run); the whirl state is 5400 tau of
 # integration, where other CPUs' rounding may shift the phase slightly (the old integrator: 0.034)
@@ -49,14 +50,25 @@ def test_lambda_c_and_optimum_reproduce(table):
     np.testing.assert_allclose([d_opt, best], [e["d_opt"], e["lambda_best"]], rtol=RTOL_STABILITY)
 
 
-def test_whirl_start_state_reproduces_and_lies_on_the_cycle(table):
+def test_whirl_start_state_reproduces_on_the_machine_that_made_it(table):
+    """The recipe run again gives the stored state.  5400 tau of integration: another CPU's rounding
+    shifts the phase on the cycle (the file records where it was made), so there this test says so and
+    skips; the next test checks the cycle itself everywhere."""
+    here = platform_fingerprint()
+    if table["made_on"] != here:
+        pytest.skip(f"task constants made on {table['made_on']}, this machine is {here}")
     w = table["nominal"][DEFAULT_GRID]["whirl"]
-    model = _model()
-    fresh = developed_whirl_state(model, w["bearing_number"], w["foil_damping"])
+    fresh = developed_whirl_state(_model(), w["bearing_number"], w["foil_damping"])
     np.testing.assert_allclose(fresh["state"], w["state"], rtol=0, atol=ATOL_WHIRL_STATE)
     for k in ("period", "max_eccentricity", "min_film_thickness"):
         np.testing.assert_allclose(fresh[k], w[k], rtol=1e-6, err_msg=k)
-    # independent of the recipe: one period on from the stored state the rotor is back where it was
+
+
+def test_whirl_start_state_lies_on_the_cycle(table):
+    w = table["nominal"][DEFAULT_GRID]["whirl"]
+    model = _model()
+    # independent of the recipe and of the machine: one period on from the stored state the rotor is
+    # back where it was
     s0 = np.asarray(w["state"])
     lam, dw = w["bearing_number"], w["foil_damping"]
     integ = TrapezoidalIntegrator(model, s0, lam, dw, touchdown_film_thickness=0.02)

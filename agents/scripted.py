@@ -195,6 +195,16 @@ class ScheduleAgent(ScriptedPolicy):
         self.damping, self.ramp = float(damping), float(ramp)
         self.setpoint_rpm = float(setpoint_rpm if setpoint_rpm is not None else spec.target_rpm)
 
+    @classmethod
+    def from_schedule(cls, spec: ControlSpec, schedule, name: str = "designed_schedule") -> ScheduleAgent:
+        """The run-up designed by ``gfb schedule`` (:class:`gfb_env.analysis.schedule.RunUpSchedule`):
+        its damping, its acceleration (as a fraction of the env's motor limit, at most 1) and its end
+        speed."""
+        b = schedule.model.bearing
+        accel = b.rate_rpm_per_s(schedule.rate)
+        ramp = min(1.0, accel / spec.actions.max_acceleration_rpm_per_s)
+        return cls(spec, schedule.foil_damping, ramp, b.speed_rpm_at(schedule.end_bearing_number), name)
+
     def _act(self, obs, rpm, m):
         return [self.track(m, rpm, self.setpoint_rpm, self.ramp), self.spec.damping_action(self.damping)]
 

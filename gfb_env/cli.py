@@ -381,6 +381,9 @@ def build_parser() -> argparse.ArgumentParser:
         from gfb_env.cli_engineering import add_engineering_commands
 
         add_engineering_commands(sub)
+        from gfb_env.cli_schedule import add_schedule_command
+
+        add_schedule_command(sub)
     return parser
 
 

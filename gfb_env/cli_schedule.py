@@ -1,0 +1,291 @@
+"""``gfb schedule``: a designed, verified run-up schedule for a bearing (issue 12, part 3).
+
+The design is :func:`gfb_env.analysis.schedule.design_run_up_schedule`; this module checks the options
+(one line and exit 2 before any work), runs it, verifies the schedule by a transient run and writes the
+schedule (CSV), the map with the path (PNG) and a summary (JSON).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from gfb_env import jsonio
+from gfb_env._cli_common import (
+    add_bearing_option,
+    check_output_dir,
+    grid_type,
+    in_range,
+    int_range,
+    positive,
+)
+from gfb_env.model import Grid
+
+__all__ = ["add_schedule_command", "cmd_schedule"]
+
+_FILES = ("schedule.csv", "stability_curve.csv", "schedule.png", "summary.json")
+
+
+def add_schedule_command(subparsers) -> None:
+    """Add ``schedule`` to an :mod:`argparse` subparsers object."""
+    p = subparsers.add_parser(
+        "schedule",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        help="design and verify a run-up schedule (damping and speed path) for a bearing",
+        description=(
+            "Designs a run-up for the viscoelastic foil of the bearing: Lambda_c(D_W) on a log grid of\n"
+            "dampings, the fold of cycles (lower edge of the hysteresis band) at the dampings with the\n"
+            "highest Lambda_c, and the damping with the highest safe speed\n"
+            "min((1 - margin) Lambda_c, Lambda_fold).  The schedule ramps at --acceleration at that\n"
+            "damping to the target, or, if the target is above the safe speed, to the safe speed (the\n"
+            "target is reported infeasible), then holds; a transient run verifies it.\n\n"
+            "Writes OUT/schedule.csv (time_s, speed_rpm, foil_damping), OUT/stability_curve.csv\n"
+            "(foil_damping, critical_speed_rpm, fold_speed_rpm), OUT/schedule.png (the map with the path)\n"
+            "and OUT/summary.json.\n\n"
+            "JSON keys: structure, grid, foil_stiffness, target_speed_rpm, feasible, foil_damping,\n"
+            "critical_speed_rpm, fold_speed_rpm, max_safe_speed_rpm, end_speed_rpm, start_speed_rpm,\n"
+            "margin, margin_to_critical, margin_to_fold, acceleration_rpm_s, ramp_time_s, hold_time_s,\n"
+            "verified_status, verified_max_whirl_amplitude_um, verified_min_film_thickness_um,\n"
+            "verified_max_eccentricity_um, notes, files, wall_time_s."
+        ),
+    )
+    add_bearing_option(p)
+    p.add_argument(
+        "--target-rpm", type=positive("--target-rpm"), required=True, metavar="N", help="target speed (rpm)"
+    )
+    p.add_argument(
+        "--margin",
+        type=in_range("--margin", 0.0, 0.5),
+        default=0.05,
+        metavar="M",
+        help="relative margin below the critical speed, in [0, 0.5) (default %(default)s)",
+    )
+    p.add_argument(
+        "--acceleration",
+        type=positive("--acceleration"),
+        default=2500.0,
+        metavar="RPM_PER_S",
+        help="speed ramp in rpm/s (default %(default)s)",
+    )
+    p.add_argument(
+        "--start-rpm",
+        type=positive("--start-rpm"),
+        default=None,
+        metavar="N",
+        help="start speed in rpm (default: half the end speed)",
+    )
+    p.add_argument(
+        "--foil-stiffness",
+        type=positive("--foil-stiffness"),
+        default=None,
+        metavar="K",
+        help="K_W (default: Walowit-Anno of the bearing's bump foil)",
+    )
+    p.add_argument(
+        "--damping-range",
+        type=positive("--damping-range"),
+        nargs=2,
+        default=[0.1, 10.0],
+        metavar=("DMIN", "DMAX"),
+        help="range of the foil damping D_W searched (default 0.1 10)",
+    )
+    p.add_argument(
+        "--n-dampings",
+        type=int_range("--n-dampings", 3, 60),
+        default=13,
+        metavar="N",
+        help="log-spaced dampings of the stability curve, 3..60 (default %(default)s)",
+    )
+    p.add_argument(
+        "--fold-dampings",
+        type=int_range("--fold-dampings", 0, 10),
+        default=3,
+        metavar="N",
+        help="dampings (highest Lambda_c first) at which the fold of cycles is computed, 0..10; 0 skips "
+        "the hysteresis band (default %(default)s; each takes seconds on 31x7, about a minute on 79x7)",
+    )
+    p.add_argument(
+        "--hold",
+        type=in_range("--hold", 500.0, 100_000.0),
+        default=3000.0,
+        metavar="TAU",
+        help="hold at the end speed in tau, 500..100000 (default %(default)s); the verification's whirl "
+        "amplitude is taken over its last 500 tau",
+    )
+    p.add_argument(
+        "--grid",
+        type=grid_type,
+        default=Grid(31, 7),
+        metavar="NPHIxNZ",
+        help="finite-difference grid (default 31x7: Lambda_c within 1 %% of 79x7, docs/envs.md)",
+    )
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.set_defaults(func=cmd_schedule)
+
+
+def cmd_schedule(args: argparse.Namespace) -> int:
+    """Handler of ``gfb schedule``."""
+    from gfb_env._cli_common import bearing_from_args
+    from gfb_env.analysis.runup import bearing_number_rate
+    from gfb_env.analysis.schedule import design_run_up_schedule, verify_schedule
+    from gfb_env.analysis.stability import check_eigen_size
+    from gfb_env.model import GFBModel
+
+    b = bearing_from_args(args)
+    dmin, dmax = args.damping_range
+    if not dmin < dmax:
+        raise ValueError(f"--damping-range must satisfy 0 < DMIN < DMAX, got {dmin:g} {dmax:g}")
+    if args.start_rpm is not None and not args.start_rpm < args.target_rpm:
+        raise ValueError(f"--start-rpm must be below --target-rpm, got {args.start_rpm:g}")
+    model = GFBModel("viscoelastic", args.grid, bearing=b, foil_stiffness=args.foil_stiffness)
+    try:
+        check_eigen_size(model)
+    except ValueError as exc:
+        raise ValueError(f"--grid: {exc}") from None
+    out = check_output_dir(args.out, "--out", _FILES)
+    rate = bearing_number_rate(model, args.acceleration)
+    ramp_tau = (b.bearing_number_at(args.target_rpm) - b.bearing_number_at(args.start_rpm or 0.0)) / rate
+    if ramp_tau > 250_000:
+        raise ValueError(
+            f"--acceleration {args.acceleration:g} rpm/s makes the ramp {ramp_tau:.3g} tau long, at most "
+            "250000 (raise the acceleration)"
+        )
+    t0 = time.perf_counter()
+    sch = design_run_up_schedule(
+        model,
+        b.bearing_number_at(args.target_rpm),
+        margin=args.margin,
+        rate=rate,
+        start_bearing_number=None if args.start_rpm is None else b.bearing_number_at(args.start_rpm),
+        damping_range=(dmin, dmax),
+        n_dampings=args.n_dampings,
+        fold_dampings=args.fold_dampings,
+        hold_tau=args.hold,
+    )
+    ver = verify_schedule(sch)
+    out.mkdir(parents=True, exist_ok=True)
+    path = sch.path()
+    with (out / "schedule.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["time_s", "speed_rpm", "foil_damping"])
+        for row in zip(path["time_s"], path["speed_rpm"], path["foil_damping"], strict=True):
+            w.writerow([f"{x:.8g}" for x in row])
+    fold_of = dict(zip(sch.fold_dampings.tolist(), sch.fold_bearing_numbers.tolist(), strict=True))
+
+    def rpm(lam: float) -> float | None:
+        return b.speed_rpm_at(lam) if math.isfinite(lam) else None
+
+    with (out / "stability_curve.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["foil_damping", "critical_speed_rpm", "fold_speed_rpm"])
+        for d, lc in zip(sch.dampings, sch.critical_bearing_numbers, strict=True):
+            f = fold_of.get(float(d), math.nan)
+            cells = [rpm(x) for x in (lc, f)]
+            w.writerow([f"{d:.6g}"] + ["" if c is None else f"{c:.1f}" for c in cells])
+    _plot(sch, out / "schedule.png")
+    um = b.clearance_m * 1e6
+    lam_end = sch.end_bearing_number
+    d = {
+        "structure": "viscoelastic",
+        "grid": str(model.grid),
+        "foil_stiffness": float(model.foil_stiffness),
+        "target_speed_rpm": args.target_rpm,
+        "feasible": bool(sch.feasible),
+        "foil_damping": sch.foil_damping,
+        "critical_speed_rpm": rpm(sch.critical_bearing_number),
+        "fold_speed_rpm": rpm(sch.fold_bearing_number),
+        "max_safe_speed_rpm": rpm(sch.safe_bearing_number),
+        "end_speed_rpm": rpm(lam_end),
+        "start_speed_rpm": rpm(sch.start_bearing_number),
+        "margin": sch.margin,
+        "margin_to_critical": 1.0 - lam_end / sch.critical_bearing_number,
+        "margin_to_fold": (
+            1.0 - lam_end / sch.fold_bearing_number if math.isfinite(sch.fold_bearing_number) else None
+        ),
+        "acceleration_rpm_s": args.acceleration,
+        "ramp_time_s": b.seconds(sch.ramp_tau),
+        "hold_time_s": b.seconds(sch.hold_tau),
+        "verified_status": ver.status,
+        "verified_max_whirl_amplitude_um": ver.max_whirl_amplitude * um,
+        "verified_min_film_thickness_um": ver.min_film_thickness * um,
+        "verified_max_eccentricity_um": ver.max_eccentricity * um,
+        "notes": list(sch.notes),
+        "files": {k: str(out / k) for k in _FILES},
+        "wall_time_s": time.perf_counter() - t0,
+    }
+    (out / "summary.json").write_text(jsonio.dumps(d, indent=2))
+    if args.json:
+        print(jsonio.dumps(d))
+    else:
+        verdict = "feasible" if sch.feasible else "INFEASIBLE"
+        print(f"target {args.target_rpm:.0f} rpm: {verdict}; D_W = {sch.foil_damping:.3g}")
+        print(
+            f"  critical {d['critical_speed_rpm']:.0f} rpm, fold "
+            f"{'-' if d['fold_speed_rpm'] is None else round(d['fold_speed_rpm'])} rpm, "
+            f"max safe {d['max_safe_speed_rpm']:.0f} rpm; schedule ends at {d['end_speed_rpm']:.0f} rpm"
+        )
+        print(
+            f"  verified: {ver.status}, whirl {d['verified_max_whirl_amplitude_um']:.3g} um, "
+            f"min film {d['verified_min_film_thickness_um']:.2f} um"
+        )
+        for n in sch.notes:
+            print(f"  note: {n}")
+        print(f"  wrote {out}/ ({d['wall_time_s']:.1f} s)")
+    return 0 if ver.status == "done" else 1
+
+
+def _plot(sch, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    b = sch.model.bearing
+    krpm = np.vectorize(lambda lam: b.speed_rpm_at(lam) / 1000.0 if np.isfinite(lam) else np.nan)
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    ax.semilogx(sch.dampings, krpm(sch.critical_bearing_numbers), "k.-", label="critical speed (Lambda_c)")
+    ax.semilogx(
+        sch.dampings,
+        krpm((1 - sch.margin) * sch.critical_bearing_numbers),
+        "k:",
+        lw=0.8,
+        label=f"{sch.margin:.0%} margin",
+    )
+    if len(sch.fold_dampings):
+        ax.semilogx(sch.fold_dampings, krpm(sch.fold_bearing_numbers), "rs", label="fold of cycles")
+        ok = np.isfinite(sch.fold_bearing_numbers)
+        for d, f in zip(sch.fold_dampings[ok], sch.fold_bearing_numbers[ok], strict=True):
+            lc = float(np.interp(np.log(d), np.log(sch.dampings), sch.critical_bearing_numbers))
+            ax.fill_between([d / 1.08, d * 1.08], krpm(f), krpm(lc), color="r", alpha=0.2, lw=0)
+    d = sch.foil_damping
+    curves = krpm(np.r_[sch.critical_bearing_numbers, (1 - sch.margin) * sch.critical_bearing_numbers])
+    lo = float(np.nanmin(np.r_[curves, krpm(sch.end_bearing_number)])) * 0.97
+    hi = float(np.nanmax(curves)) * 1.01
+    ax.set_ylim(lo, hi)
+    start = float(krpm(sch.start_bearing_number))
+    ax.annotate(
+        "",
+        xy=(d, krpm(sch.end_bearing_number)),
+        xytext=(d, max(start, lo)),
+        arrowprops={"arrowstyle": "->", "color": "b", "lw": 2},
+    )
+    ax.text(d * 1.1, lo + 0.02 * (hi - lo), f"ramp from {start:.1f} krpm", color="b", fontsize=8)
+    ax.plot([d], [krpm(sch.end_bearing_number)], "bo", label="schedule (ramp at D_W, hold)")
+    ax.axhline(float(krpm(sch.target_bearing_number)), color="b", ls="--", lw=0.8, label="target")
+    ax.set(
+        xlabel="foil damping D_W",
+        ylabel="speed (krpm)",
+        title=f"run-up schedule: {'feasible' if sch.feasible else 'target infeasible'}, "
+        f"K_W = {sch.model.foil_stiffness:.3g}, {sch.model.grid}",
+    )
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7, loc="lower left")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

@@ -1,0 +1,107 @@
+"""The designed run-up schedule (``gfb schedule``, gfb_env.analysis.schedule) and its policy."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from gfb_agents.evaluate import run_episode
+from gfb_agents.scripted import ControlSpec, ScheduleAgent
+from gfb_env.analysis.schedule import design_run_up_schedule, verify_schedule
+from gfb_env.cli import main as gfb
+from gfb_env.envs._data import NOMINAL_BEARING
+from gfb_env.model import GFBModel
+
+
+@pytest.fixture(scope="module")
+def model() -> GFBModel:
+    return GFBModel("viscoelastic", "31x7", foil_stiffness=1.0)
+
+
+def test_feasible_target_is_reached_at_the_best_damping_and_verified(model):
+    sch = design_run_up_schedule(model, 0.55, fold_dampings=0, n_dampings=9)
+    j = int(np.nanargmax(sch.critical_bearing_numbers))
+    assert sch.foil_damping == pytest.approx(sch.dampings[j], rel=0.6)  # the parabola's optimum, on the grid
+    assert sch.feasible and sch.end_bearing_number == 0.55
+    assert sch.safe_bearing_number == pytest.approx(0.95 * sch.critical_bearing_number)
+    assert any("hysteresis band is unknown" in n for n in sch.notes)
+    p = sch.path()
+    assert p["speed_rpm"][0] == pytest.approx(model.bearing.speed_rpm_at(0.275))
+    assert p["speed_rpm"][-1] == pytest.approx(model.bearing.speed_rpm_at(0.55))
+    assert np.all(np.diff(p["speed_rpm"]) >= 0) and np.all(p["foil_damping"] == sch.foil_damping)
+    v = verify_schedule(sch)
+    assert v.status == "done" and v.max_whirl_amplitude < 1e-3 and v.min_film_thickness > 0.1
+
+
+def test_infeasible_target_goes_to_the_safe_speed(model):
+    sch = design_run_up_schedule(model, 0.65, fold_dampings=0, n_dampings=9)
+    assert not sch.feasible
+    assert sch.end_bearing_number == sch.safe_bearing_number < 0.65
+    assert sch.end_bearing_number == pytest.approx(0.95 * sch.critical_bearing_number)
+
+
+def test_fold_makes_the_hysteresis_band_part_of_the_safe_speed(model):
+    # K_W = 1: subcritical Hopf, fold ~2.5 % below Lambda_c; with a 1 % margin the fold is the limit
+    sch = design_run_up_schedule(model, 0.65, margin=0.01, fold_dampings=1, n_dampings=9)
+    assert math.isfinite(sch.fold_bearing_number)
+    assert 0.95 * sch.critical_bearing_number < sch.fold_bearing_number < sch.critical_bearing_number
+    assert sch.safe_bearing_number == sch.fold_bearing_number and not sch.feasible
+
+
+@pytest.mark.parametrize(
+    "argv, fragment",
+    [
+        (["--target-rpm", "-5"], "--target-rpm"),
+        (["--target-rpm", "30000", "--margin", "0.7"], "--margin"),
+        (["--target-rpm", "30000", "--damping-range", "5", "1"], "--damping-range"),
+        (["--target-rpm", "30000", "--start-rpm", "40000"], "--start-rpm"),
+        (["--target-rpm", "30000", "--acceleration", "1e-6"], "--acceleration"),
+        (["--target-rpm", "30000", "--grid", "313x25"], "--grid"),
+        (["--target-rpm", "30000", "--fold-dampings", "99"], "--fold-dampings"),
+    ],
+)
+def test_cli_refuses_bad_options_at_once(argv, fragment, tmp_path, capsys):
+    t0 = time.perf_counter()
+    try:
+        rc = gfb(["schedule", *argv, "--out", str(tmp_path / "o")])
+    except SystemExit as exc:
+        rc = exc.code
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and fragment in err, err
+    assert time.perf_counter() - t0 < 5 and not (tmp_path / "o").exists()
+
+
+def test_cli_writes_the_schedule_map_and_summary(tmp_path, capsys):
+    out = tmp_path / "sch"
+    rc = gfb(
+        ["schedule", "--target-rpm", "33000", "--foil-stiffness", "1", "--fold-dampings", "0"]
+        + ["--n-dampings", "7", "--out", str(out), "--json"]
+    )
+    assert rc == 0
+    d = json.loads(capsys.readouterr().out)
+    for k in ("feasible", "max_safe_speed_rpm", "margin_to_critical", "verified_max_whirl_amplitude_um"):
+        assert k in d, k
+    assert d["feasible"] and d["end_speed_rpm"] == pytest.approx(33000)
+    assert d["verified_status"] == "done" and d["verified_min_film_thickness_um"] > 1.0
+    assert d["margin_to_critical"] >= 0.05 and d["fold_speed_rpm"] is None
+    rows = (out / "schedule.csv").read_text().splitlines()
+    assert rows[0] == "time_s,speed_rpm,foil_damping" and len(rows) == 102
+    assert (out / "schedule.png").stat().st_size > 10_000
+
+
+def test_the_schedule_as_a_policy_succeeds_on_run_up():
+    env = gym.make("gfb_env/RunUp-v0")
+    u = env.unwrapped
+    m = GFBModel("viscoelastic", u.grid, bearing=NOMINAL_BEARING)
+    lam_t = u.target_bearing_number
+    sch = design_run_up_schedule(m, lam_t, margin=0.04, fold_dampings=0, rate=u.max_rate(NOMINAL_BEARING))
+    assert sch.feasible
+    agent = ScheduleAgent.from_schedule(ControlSpec.from_env(env), sch)
+    assert agent.ramp == pytest.approx(1.0) and agent.damping == sch.foil_damping
+    res = run_episode(env, agent, seed=3)
+    assert res.success, res

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gfb_env.machine._checks import finite, finite_pair, is_number, nonnegative
+from gfb_env.machine._checks import finite, is_number, nonnegative
 
 __all__ = ["ProximityProbes", "ProbeErrors"]
 

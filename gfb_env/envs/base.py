@@ -7,10 +7,13 @@ units of tau (several whirl periods ``~4 pi / Lambda``) and many integrator step
 the bearing number Lambda and the foil damping D_W ramp linearly from their current values to the
 commanded ones.
 
-One control step is four stages (:meth:`GFBEnv.step`): *command* (sanitise the action, map it to
-the commanded Lambda and D_W: :class:`~gfb_env.envs.units.ActionMap`), *plant* (a disturbance kick,
+One control step is four stages (:meth:`GFBEnv.step`): *command* (sanitise the action; the motor
+turns the speed action into Lambda at the step's end, the foil-damping actuator turns the damping
+command into the actual D_W at the step's end: :mod:`gfb_env.machine`), *plant* (a disturbance kick,
 then the integrator over the control interval), *judge* (stability, hold, success, termination and the
-task's reward terms) and *emit* (observation and info).  Everything that changes within an episode is
+task's reward terms, from the true plant) and *emit* (the observation, built from the sensors:
+proximity probes and pressure taps, and info).  With the default (ideal) actuator and sensors the
+machine is exactly v0's.  Everything that changes within an episode is
 one :class:`~gfb_env.envs.episode.Episode`; the configuration is one frozen
 :class:`~gfb_env.envs.config.EnvConfig`.
 
@@ -54,6 +57,7 @@ from gfb_env.envs.units import (
     ObservationLayout,
 )
 from gfb_env.integrator import IntegrationError, TrapezoidalIntegrator
+from gfb_env.machine import FoilDampingActuator, Motor, PressureTaps, ProximityProbes
 from gfb_env.model import GFBModel, Grid, Structure
 from gfb_env.params import BearingParameters
 
@@ -91,7 +95,9 @@ class GFBEnv(gym.Env):
     ``control_interval``, ``max_acceleration_rpm_per_s``, ``speed_range_rpm``, ``damping_range``,
     ``n_pressure_probes``, ``observation_noise``, ``touchdown_film_thickness``, ``stable_amplitude``,
     ``hold_steps``, ``disturbance_probability``, ``disturbance_magnitude``, ``speed_scale_rpm``,
-    ``nominal_bearing``, ``integrator_options``), plus ``render_mode`` (``None``, ``"rgb_array"`` or
+    ``nominal_bearing``, ``integrator_options``, and the machine's components ``motor``,
+    ``damping_actuator``, ``proximity_probes``, ``pressure_taps``: objects of :mod:`gfb_env.machine` or
+    dicts of their fields), plus ``render_mode`` (``None``, ``"rgb_array"`` or
     ``"human"``).  An unknown keyword or a bad value raises ``ValueError`` naming it.
     """
 
@@ -143,6 +149,10 @@ class GFBEnv(gym.Env):
     disturbance_magnitude = _FromConfig()
     speed_scale_rpm = _FromConfig()
     nominal_bearing = _FromConfig()
+    motor: Motor = _FromConfig()  # type: ignore[assignment]
+    damping_actuator: FoilDampingActuator = _FromConfig()  # type: ignore[assignment]
+    proximity_probes: ProximityProbes = _FromConfig()  # type: ignore[assignment]
+    pressure_taps: PressureTaps = _FromConfig()  # type: ignore[assignment]
 
     # ------------------------------------------------------------------------------------------
     # task hooks
@@ -233,6 +243,13 @@ class GFBEnv(gym.Env):
         rotor = setup.model.layout.rotor(setup.state)
         history = History()
         history.append(self._integ.tau, setup.bearing_number, setup.foil_damping, 0.0)
+        # the machine's per-episode state, drawn after the task's draws (an ideal machine draws nothing)
+        rng = self.np_random
+        act = self.damping_actuator
+        gain = setup.damping_gain if setup.damping_gain is not None else act.draw_gain(rng)
+        actuator = act.start(setup.foil_damping, gain)
+        probe_bias = self.proximity_probes.draw_bias(rng)
+        tap_bias = self.pressure_taps.draw_bias(rng, self.n_pressure_probes)
         self._ep = Episode(
             model=setup.model,
             bearing=b,
@@ -243,6 +260,9 @@ class GFBEnv(gym.Env):
             min_film_thickness=setup.model.min_film_thickness(setup.state),
             orbit=(np.array([rotor[0]]), np.array([rotor[1]])),
             history=history,
+            actuator=actuator,
+            probe_bias_um=probe_bias,
+            tap_bias_kpa=tap_bias,
         )
         return self._emit()
 
@@ -280,12 +300,17 @@ class GFBEnv(gym.Env):
         return clean, bool(np.any(clean != a) or np.any(np.isnan(a)))
 
     def _command(self, a: np.ndarray) -> tuple[float, float]:
-        """The commanded Lambda and D_W at the end of the control step (the speed within its range)."""
-        b = self._ep.bearing
-        lam0 = self._integ.bearing_number
-        lam_lo, lam_hi = self.bearing_number_limits(b)
-        lam1 = float(np.clip(lam0 + a[0] * self.max_rate(b) * self.control_interval, lam_lo, lam_hi))
-        return lam1, self.actions.damping_from_action(a[1])
+        """Lambda and the actual D_W at the end of the control step: the motor's speed ramp (within
+        the speed range) and the actuator's response to the damping command held over the step (its
+        state moves to the step's end)."""
+        ep = self._ep
+        b = ep.bearing
+        lam1 = self.motor.bearing_number_at_step_end(
+            self._integ.bearing_number, a[0], b, self.control_interval, self.bearing_number_limits(b)
+        )
+        commanded = self.actions.damping_from_action(a[1])
+        ep.actuator = self.damping_actuator.step(ep.actuator, commanded, b.seconds(self.control_interval))
+        return lam1, ep.actuator.foil_damping
 
     # ---- plant --------------------------------------------------------------------------------
     def _maybe_kick(self) -> bool:
@@ -383,16 +408,48 @@ class GFBEnv(gym.Env):
         obs[OBS_XI_EXTENT] = _span(ep.xi_range) * ep.position_scale
         obs[OBS_ETA_EXTENT] = _span(ep.eta_range) * ep.position_scale
         obs[N_ROTOR_OBS:] = s[self._probe_idx]
+        self._add_sensor_errors(obs, xi, eta)
         if self.observation_noise > 0:
             measured = self.observation_layout.measured_indices
             obs[measured] += self.observation_noise * self.np_random.standard_normal(len(measured))
         obs[OBS_SPEED] = ep.bearing.speed_rpm_at(self._integ.bearing_number) / self.speed_scale_rpm
-        obs[OBS_DAMPING] = self.actions.action_from_damping(self._integ.foil_damping)
+        # the actuator's position feedback: the damping it believes it sets (the gain is hidden)
+        obs[OBS_DAMPING] = self.actions.action_from_damping(self._integ.foil_damping / ep.actuator.gain)
         extra = self._extra_observation()
         if extra is not None:
             obs = np.concatenate([obs, extra])
         obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
         return np.clip(obs, self.observation_space.low, self.observation_space.high).astype(np.float32)
+
+    def _add_sensor_errors(self, obs: np.ndarray, xi: float, eta: float) -> None:
+        """Add what the probes and taps add to the truth (nothing, and no draw, for ideal sensors).
+
+        The readings are in um and kPa; the observation is in the nominal bearing's units (C_nom,
+        C_nom / T_nom, p0), so an error maps to it independently of the episode's bearing."""
+        ep, nb = self._ep, self.nominal_bearing
+        c_um = ep.bearing.clearance_m * 1e6
+        probes = self.proximity_probes
+        if probes.is_ideal:
+            ep.probe_readings_um = np.array(probes.read_um(xi * c_um, eta * c_um, ep.probe_bias_um))
+        else:
+            cnom_um = nb.clearance_m * 1e6
+            xs, es = ep.orbit
+            err = probes.measurement_errors(
+                self.np_random,
+                np.asarray(xs) * c_um,
+                np.asarray(es) * c_um,
+                ep.bearing.seconds(self.record_interval),
+                ep.probe_bias_um,
+            )
+            obs[[OBS_XI, OBS_ETA]] += err.position_um / cnom_um
+            obs[[OBS_XI_DOT, OBS_ETA_DOT]] += err.velocity_um_per_s * nb.time_scale_s / cnom_um
+            obs[[OBS_XI_EXTENT, OBS_ETA_EXTENT]] += err.extent_um / cnom_um
+            x, y = probes.read_um(xi * c_um, eta * c_um, ep.probe_bias_um)
+            ep.probe_readings_um = np.array([x + err.noise_um[0], y + err.noise_um[1]])
+        if not self.pressure_taps.is_ideal:
+            obs[N_ROTOR_OBS:] += self.pressure_taps.errors_kpa(self.np_random, ep.tap_bias_kpa) * (
+                1e3 / nb.ambient_pressure_pa
+            )
 
     def _info(self) -> dict:
         ep, integ, model = self._ep, self._integ, self._ep.model
@@ -407,6 +464,9 @@ class GFBEnv(gym.Env):
             "time_s": b.seconds(integ.tau),
             "bearing_number": lam,
             "foil_damping": integ.foil_damping,
+            "damping_gain": ep.actuator.gain,
+            "probe_x_um": float(ep.probe_readings_um[0]),
+            "probe_y_um": float(ep.probe_readings_um[1]),
             "speed_rpm": b.speed_rpm_at(lam),
             "xi_um": b.micrometres(xi),
             "eta_um": b.micrometres(eta),

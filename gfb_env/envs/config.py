@@ -16,6 +16,8 @@ import numpy as np
 
 from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.integrator_options import IntegratorOptions
+from gfb_env.machine import FoilDampingActuator, Motor, PressureTaps, ProximityProbes
+from gfb_env.machine._checks import component
 from gfb_env.model import Grid
 from gfb_env.params import BearingParameters
 
@@ -92,7 +94,8 @@ class EnvConfig:
         control_interval: tau per control step, in :data:`CONTROL_INTERVAL_RANGE` (default 60: ~3
             whirl periods at Lambda = 0.7, 9.5 ms for the nominal bearing).
         max_acceleration_rpm_per_s: motor acceleration limit; ``a_speed = +-1`` ramps at it (default
-            30 000 rpm/s, a small high-speed motor).
+            30 000 rpm/s, a small high-speed motor).  The same as ``motor.max_acceleration_rpm_per_s``:
+            give either (or both, equal).
         speed_range_rpm: allowed rotor speeds; the commanded speed is clipped into it.
         damping_range: ``(D_min, D_max)`` of the foil damping D_W; ``a_damping`` maps log-linearly.
         n_pressure_probes: midplane pressure probes equally spaced in phi from phi = 0.
@@ -108,11 +111,20 @@ class EnvConfig:
         nominal_bearing: the task's nominal bearing (observation scales; the plant unless randomised).
         integrator: settings of the trapezoidal integrator (a dict of its keyword arguments or an
             :class:`~gfb_env.integrator_options.IntegratorOptions`).
+        motor: the drive (:class:`~gfb_env.machine.Motor` or a dict of its fields); default: a
+            ``Motor(max_acceleration_rpm_per_s)``.
+        damping_actuator: lag, rate limit and effectiveness gain between the commanded and the actual
+            D_W (:class:`~gfb_env.machine.FoilDampingActuator` or a dict); default ideal (v0: the
+            command is the plant's D_W at the step's end).
+        proximity_probes: the X/Y displacement probes (:class:`~gfb_env.machine.ProximityProbes` or a
+            dict); default ideal (v0: exact positions, velocities and envelopes).
+        pressure_taps: the midplane pressure taps (:class:`~gfb_env.machine.PressureTaps` or a dict);
+            default ideal (v0: exact pressures).
     """
 
     grid: Grid = field(default_factory=lambda: Grid.parse(DEFAULT_GRID))
     control_interval: float = 60.0
-    max_acceleration_rpm_per_s: float = 30_000.0
+    max_acceleration_rpm_per_s: float | None = None
     speed_range_rpm: tuple[float, float] = (12_000.0, 60_000.0)
     damping_range: tuple[float, float] = (0.1, 10.0)
     n_pressure_probes: int = 8
@@ -125,6 +137,10 @@ class EnvConfig:
     speed_scale_rpm: float = 60_000.0
     nominal_bearing: BearingParameters = NOMINAL_BEARING
     integrator: IntegratorOptions = field(default_factory=IntegratorOptions)
+    motor: Motor | None = None
+    damping_actuator: FoilDampingActuator = field(default_factory=FoilDampingActuator.ideal)
+    proximity_probes: ProximityProbes = field(default_factory=ProximityProbes.ideal)
+    pressure_taps: PressureTaps = field(default_factory=PressureTaps.ideal)
 
     def __post_init__(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -136,10 +152,7 @@ class EnvConfig:
         elif not isinstance(g, Grid):
             raise ValueError(f"grid must be a string like '31x7' or a Grid, got {g!r}")
         put("control_interval", check_in("control_interval", self.control_interval, *CONTROL_INTERVAL_RANGE))
-        put(
-            "max_acceleration_rpm_per_s",
-            check_positive("max_acceleration_rpm_per_s", self.max_acceleration_rpm_per_s),
-        )
+        self._resolve_motor(put)
         lo, hi = check_range("speed_range_rpm", self.speed_range_rpm)
         if lo <= 0:
             raise ValueError(f"speed_range_rpm must be positive, got {self.speed_range_rpm!r}")
@@ -171,6 +184,27 @@ class EnvConfig:
             kind = type(self.nominal_bearing).__name__
             raise ValueError(f"nominal_bearing must be a BearingParameters or None, got {kind}")
         put("integrator", IntegratorOptions.from_mapping(self.integrator))
+        put("damping_actuator", component("damping_actuator", FoilDampingActuator, self.damping_actuator))
+        put("proximity_probes", component("proximity_probes", ProximityProbes, self.proximity_probes))
+        put("pressure_taps", component("pressure_taps", PressureTaps, self.pressure_taps))
+
+    def _resolve_motor(self, put: Any) -> None:
+        """One acceleration limit: ``motor`` and ``max_acceleration_rpm_per_s`` agree (either may be
+        omitted; neither: 30 000 rpm/s)."""
+        acc = self.max_acceleration_rpm_per_s
+        if acc is not None:
+            acc = check_positive("max_acceleration_rpm_per_s", acc)
+        if self.motor is None:
+            motor = Motor() if acc is None else Motor(acc)
+        else:
+            motor = component("motor", Motor, self.motor)
+            if acc is not None and acc != motor.max_acceleration_rpm_per_s:
+                raise ValueError(
+                    f"max_acceleration_rpm_per_s={acc!r} contradicts motor.max_acceleration_rpm_per_s="
+                    f"{motor.max_acceleration_rpm_per_s!r}; give one of them"
+                )
+        put("motor", motor)
+        put("max_acceleration_rpm_per_s", motor.max_acceleration_rpm_per_s)
 
     @classmethod
     def from_kwargs(cls, kwargs: Mapping[str, Any]) -> EnvConfig:

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from gfb_env.machine import DampingActuatorState
 from gfb_env.model import GFBModel
 from gfb_env.params import BearingParameters
 
@@ -53,7 +54,9 @@ class EpisodeSetup:
     """What a task decides at ``reset``: the plant, where it starts, and the task's own constants.
 
     ``task`` is the task's frozen record of the episode (e.g. its target); ``info`` the entries it adds
-    to every ``info`` dict."""
+    to every ``info`` dict.  ``foil_damping`` is the plant's actual D_W at the start; ``damping_gain``
+    fixes this episode's actuator effectiveness (None: the actuator's own, or its draw from
+    ``gain_range``)."""
 
     model: GFBModel
     state: np.ndarray
@@ -62,6 +65,7 @@ class EpisodeSetup:
     bearing: BearingParameters
     info: dict
     task: Any = None
+    damping_gain: float | None = None
 
 
 @dataclass
@@ -98,6 +102,10 @@ class Episode:
         disturbance: a kick was applied in the last step.
         reward: of the last step; episode_return: their sum; reward_terms: the last reward's terms.
         integrator_steps: accepted integrator steps since reset (kicks do not reset it).
+        actuator: the foil-damping actuator's state (actual D_W at the end of the last step, this
+            episode's effectiveness gain).
+        probe_bias_um, tap_bias_kpa: this episode's sensor offsets ((X, Y) in um; one per tap in kPa).
+        probe_readings_um: the (X, Y) probe readings of the last observation, um.
     """
 
     model: GFBModel
@@ -122,6 +130,10 @@ class Episode:
     episode_return: float = 0.0
     reward_terms: dict = field(default_factory=dict)
     integrator_steps: int = 0
+    actuator: DampingActuatorState | None = None
+    probe_bias_um: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    tap_bias_kpa: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    probe_readings_um: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
     @property
     def done(self) -> bool:

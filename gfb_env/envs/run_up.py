@@ -119,7 +119,8 @@ class RunUpEnv(GFBEnv):
     ``damping_range=(0.1, 10)``, ``n_pressure_probes=8``, ``observation_noise=0``,
     ``touchdown_film_thickness=0.02``, ``stable_amplitude=0.05``, ``hold_steps=10``,
     ``disturbance_probability=0.1``, ``disturbance_magnitude=0.005``, ``integrator_options=None``,
-    ``render_mode=None``.
+    ``render_mode=None``, and the machine (:mod:`gfb_env.machine`, ``docs/machine.md``): ``motor``,
+    ``damping_actuator``, ``proximity_probes``, ``pressure_taps`` (defaults: v0's ideal machine).
 
     ## Version History
 

@@ -159,7 +159,8 @@ class RunUpRandomizedEnv(RunUpEnv):
                 {k: v for k, v in kwargs.items() if k != "render_mode"}
             ).nominal_bearing
             start_speed_rpm = round(0.85 * self.lowest_critical_speed_rpm(nominal), -2)
-        kwargs.setdefault("max_acceleration_rpm_per_s", 30_000.0)
+        if "motor" not in kwargs:
+            kwargs.setdefault("max_acceleration_rpm_per_s", 30_000.0)
         super().__init__(start_speed_rpm=start_speed_rpm, grid=grid, **kwargs)
 
     def lowest_critical_speed_rpm(self, nominal: BearingParameters | None = None) -> float:

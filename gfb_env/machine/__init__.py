@@ -1,0 +1,35 @@
+"""The instrumented machine around the bearing model: what a controller commands and what it reads.
+
+* :class:`~gfb_env.machine.motor.Motor`: the acceleration-limited drive (speed command -> Lambda);
+* :class:`~gfb_env.machine.actuator.FoilDampingActuator`: lag, rate limit and effectiveness gain
+  between the commanded and the actual foil damping D_W;
+* :class:`~gfb_env.machine.probes.ProximityProbes`: two eddy-current probes (X, Y at 45 degrees either
+  side of the vertical), bias and noise in um;
+* :class:`~gfb_env.machine.pressure_taps.PressureTaps`: midplane pressure taps, offset and noise in kPa;
+* :class:`~gfb_env.machine.shocks.ShockArrivals`: random base shocks (Poisson arrivals) as
+  :class:`~gfb_env.machine.shocks.ShockEvent` records.
+
+Each is a small frozen, validated configuration with physical units in its field names; the defaults
+are realistic and justified in ``docs/machine.md``, and each sensor/actuator has an ``ideal()`` that
+reproduces the v0 environments exactly.  The envs take them as constructor arguments
+(:class:`~gfb_env.envs.config.EnvConfig`).
+"""
+
+from __future__ import annotations
+
+from gfb_env.machine.actuator import DampingActuatorState, FoilDampingActuator
+from gfb_env.machine.motor import Motor
+from gfb_env.machine.pressure_taps import PressureTaps
+from gfb_env.machine.probes import ProbeErrors, ProximityProbes
+from gfb_env.machine.shocks import ShockArrivals, ShockEvent
+
+__all__ = [
+    "DampingActuatorState",
+    "FoilDampingActuator",
+    "Motor",
+    "PressureTaps",
+    "ProbeErrors",
+    "ProximityProbes",
+    "ShockArrivals",
+    "ShockEvent",
+]

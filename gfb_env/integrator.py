@@ -237,7 +237,7 @@ def _predict(x, s, sprev, sprev2, f, hstep, hp, hp2, history):
 @njit(inline="always")
 def _newton(
     x, fx, fnew, r, dx, zb, H, Hd,  # workspace: x holds the prediction, then the iterate
-    s, f, hstep, h_fact, step_end,  # the step from (s, f) with the factors of I - h_fact/2 J
+    s, f, hstep, h_fact, lam_b, dw_b,  # the step from (s, f) with the factors of I - h_fact/2 J
     ip, fp, sn, cs,  # the model (GFBModel.kernel_args)
     Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, lu_static,  # the factorisation
     opt, stats,
@@ -245,14 +245,12 @@ def _newton(
     """Modified Newton iteration for the trapezoidal step; on success ``fnew = k(x)`` (checked
     admissible and finite).  Returns (converged, iterations).
 
-    ``step_end = (Lambda, D_W, forced, a_xi, a_eta)`` at the step end: with ``forced`` the external
-    rotor acceleration ``(a_xi, a_eta)`` is added to k (it does not depend on the state, so the
-    Jacobian is unchanged); without it nothing is added (bit for bit the unforced step).  (At most 30
-    arguments: beyond that CPython passes them as ``*args``, which numba cannot inline.)"""
-    lam_b, dw_b, forced, a_xi, a_eta = step_end
+    ``f`` enters only the residual ``x - s - h/2 (f + k(x))``: with an external forcing (state-independent,
+    so the Jacobian is unchanged) :func:`_advance` passes f plus the forcing at the step end and adds
+    that to ``fnew`` itself, so this stage is the unforced one, bit for bit and at the same cost.
+    (At most 30 arguments: beyond that CPython passes them as ``*args``, which numba cannot inline.)"""
     n_rows, sparse, size_tag = lu_static
     n = x.shape[0]
-    r0 = n - 4
     converged = False
     dprev = 0.0
     iters = 0
@@ -260,9 +258,6 @@ def _newton(
         iters = it + 1
         K.rhs(x, lam_b, dw_b, ip, fp, sn, cs, fx, H, Hd)
         stats[_NRHS] += 1
-        if forced:
-            fx[r0 + 2] += a_xi
-            fx[r0 + 3] += a_eta
         if not H.min() > 0.0:  # intermediate iterates may dip below P = 0, never below H = 0
             stats[_NBAD_H] += 1
             break
@@ -291,9 +286,6 @@ def _newton(
     if converged:
         mn = K.rhs(x, lam_b, dw_b, ip, fp, sn, cs, fnew, H, Hd)
         stats[_NRHS] += 1
-        if forced:
-            fnew[r0 + 2] += a_xi
-            fnew[r0 + 3] += a_eta
         if not mn > 0.0:
             converged = False
         else:
@@ -474,6 +466,7 @@ def _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats, ext, forcing):
     r = np.empty(n)  # residual, then the local error estimate
     dx = np.empty(n)  # Newton update, then the filtered error
     ftmp = np.empty(n)  # k at s_n (by-product of the Jacobian)
+    fa = np.empty(n if forced else 0)  # f plus the forcing at the step end (forced only)
     zb = np.empty((nc, Ad.shape[1]))  # solver workspace
     H = np.empty(nc)  # film thickness per column at the last k evaluation
     Hd = np.empty(nc)  # its time derivative
@@ -538,14 +531,23 @@ def _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats, ext, forcing):
         _predict(x, s, sprev, sprev2, f, hstep, hp, hp2, history)
         lam_b = _ramp(lam0, lam1, th1)
         dw_b = _ramp(dw0, dw1, th1)
+        fn = f
         a_xi = 0.0
         a_eta = 0.0
-        if forced:
+        if forced:  # the residual's f + k(x) gains the forcing at the step end (see _newton)
             a_xi, a_eta = _forcing(th1, lam0, lam1, span, unbalance, angle0, tn, shocks)
+            for i in range(n):
+                fa[i] = f[i]
+            fa[r0 + 2] += a_xi
+            fa[r0 + 3] += a_eta
+            fn = fa
         converged, iters = _newton(
-            x, fx, fnew, r, dx, zb, H, Hd, s, f, hstep, h_fact, (lam_b, dw_b, forced, a_xi, a_eta),
-            ip, fp, sn, cs, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, lu_static, opt, stats,
+            x, fx, fnew, r, dx, zb, H, Hd, s, fn, hstep, h_fact, lam_b, dw_b, ip, fp, sn, cs,
+            Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, lu_static, opt, stats,
         )  # fmt: skip
+        if converged and forced:
+            fnew[r0 + 2] += a_xi
+            fnew[r0 + 3] += a_eta
         if not converged:
             stats[_NREJ_NEWTON] += 1
             if not jac_fresh:

@@ -24,6 +24,8 @@ __all__ = [
     "bearing_file",
     "add_bearing_option",
     "check_output_dir",
+    "add_unbalance_options",
+    "unbalance_from_args",
 ]
 
 
@@ -215,3 +217,71 @@ def bearing_number_from_args(args: argparse.Namespace, bearing: BearingParameter
     if getattr(args, "bearing_number", None) is not None:
         return float(args.bearing_number)
     return bearing.bearing_number_at(float(args.speed_rpm))
+
+
+# ------------------------------------------------------------------------------------------------
+# unbalance (issue 10): one of --unbalance / --unbalance-g-mm / --balance-grade
+def add_unbalance_options(p: argparse.ArgumentParser, required: bool = False) -> None:
+    """The rotor's unbalance, nondimensional or physical (see :mod:`gfb_env.forcing`)."""
+    g = p.add_mutually_exclusive_group(required=required)
+    g.add_argument(
+        "--unbalance",
+        type=in_range("--unbalance", 0.0, 1.0),
+        default=None,
+        metavar="U",
+        help="unbalance U = m_u e / (m C): the rotor's centre-of-mass eccentricity in units of the "
+        "clearance, in [0, 1)",
+    )
+    g.add_argument(
+        "--unbalance-g-mm",
+        type=positive("--unbalance-g-mm"),
+        default=None,
+        metavar="UE",
+        help="the rotor's static unbalance m_u e in g mm, shared equally by the two bearings "
+        "(U = m_u e / (m C), m the rotor mass, --rotor-mass-kg)",
+    )
+    g.add_argument(
+        "--balance-grade",
+        type=positive("--balance-grade"),
+        default=None,
+        metavar="G",
+        help="ISO 1940-1 / 21940-11 balance grade in mm/s (e.g. 2.5 for G 2.5): e_per = G / omega at the "
+        "run speed (response over a range: its top speed), U = e_per / C",
+    )
+    p.add_argument(
+        "--rotor-mass-kg",
+        type=positive("--rotor-mass-kg"),
+        default=None,
+        metavar="KG",
+        help="rotor mass for --unbalance-g-mm (default: twice the bearing's rotor_mass_per_bearing_kg)",
+    )
+    p.add_argument(
+        "--unbalance-phase-deg",
+        type=finite("--unbalance-phase-deg"),
+        default=0.0,
+        metavar="DEG",
+        help="angle of the heavy spot at tau = 0, from the downward vertical in the sense of rotation. "
+        "Default: 0",
+    )
+
+
+def unbalance_from_args(args: argparse.Namespace, bearing: BearingParameters, speed_rpm: float):
+    """The :class:`~gfb_env.forcing.Unbalance` of the options (None when none was given); the balance
+    grade is taken at ``speed_rpm``."""
+    from gfb_env.forcing import Unbalance
+
+    phase = math.radians(args.unbalance_phase_deg)
+    if args.unbalance is not None:
+        u = Unbalance(args.unbalance, phase)
+    elif args.unbalance_g_mm is not None:
+        u = Unbalance.from_mass_radius(bearing, args.unbalance_g_mm, args.rotor_mass_kg, phase)
+    elif args.balance_grade is not None:
+        u = Unbalance.from_iso1940(bearing, args.balance_grade, speed_rpm, args.rotor_mass_kg, phase)
+    else:
+        return None
+    if not u.magnitude < 1.0:
+        raise ValueError(
+            f"the unbalance is {u.magnitude:.3g} clearances (centre-of-mass eccentricity "
+            f"{u.eccentricity_um(bearing):.3g} um >= C): it must be below 1"
+        )
+    return u

@@ -22,12 +22,14 @@ from gfb_env._cli_common import (
     add_bearing_option,
     add_model_options,
     add_speed_options,
+    add_unbalance_options,
     bearing_number_from_args,
     check_output_dir,
     finite,
     in_range,
     model_from_args,
     positive,
+    unbalance_from_args,
 )
 from gfb_env._threads import set_thread_defaults
 from gfb_env.equilibrium import find_equilibrium
@@ -196,6 +198,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     out_dir = check_simulate_args(args)
     model = model_from_args(args)
     lam = bearing_number_from_args(args, model.bearing)
+    unbalance = unbalance_from_args(args, model.bearing, model.bearing.speed_rpm_at(lam))
     layout = model.layout
     if args.start == "centre":
         s0 = layout.centred_state()
@@ -204,7 +207,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         check_perturbation(model, s_eq, args.perturbation, args.touchdown)
         s0 = layout.with_rotor(s_eq, *(layout.rotor(s_eq)[:2] + np.array(args.perturbation)), 0.0, 0.0)
     probe = np.array([layout.pressure_index(0, model.grid.midplane_row)])
-    integ = TrapezoidalIntegrator(model, s0, lam, args.foil_damping, touchdown_film_thickness=args.touchdown)
+    integ = TrapezoidalIntegrator(
+        model, s0, lam, args.foil_damping, touchdown_film_thickness=args.touchdown, unbalance=unbalance
+    )
     dt_rec = args.record_interval
     t0 = time.perf_counter()
     res = integ.advance(args.duration, record_interval=dt_rec, record_indices=probe, raise_on_failure=False)
@@ -223,6 +228,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         "speed_rpm": model.bearing.speed_rpm_at(lam),
         "foil_stiffness": model.foil_stiffness,
         "foil_damping": args.foil_damping,
+        "unbalance": 0.0 if unbalance is None else unbalance.magnitude,
+        "unbalance_g_mm": 0.0
+        if unbalance is None
+        else unbalance.mass_radius_g_mm(model.bearing, args.rotor_mass_kg),
         "duration": float(res.tau),
         "duration_s": model.bearing.seconds(res.tau),
         "status": res.status,
@@ -327,7 +336,8 @@ def build_parser() -> argparse.ArgumentParser:
         "simulate",
         help="transient simulation at constant speed",
         description="Integrate the coupled model with the adaptive trapezoidal rule and "
-        "write trajectory.csv, simulation.png (orbit and time series) and summary.json.",
+        "write trajectory.csv, simulation.png (orbit and time series) and summary.json. With an unbalance "
+        "(--unbalance, --unbalance-g-mm or --balance-grade) the rotor carries it from tau = 0.",
     )
     add_model_options(p)
     add_speed_options(p)
@@ -368,6 +378,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="HMIN",
         help="min film thickness that counts as touchdown (units of C), in [0, 1). Default: %(default)s",
     )
+    add_unbalance_options(p)
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=cmd_simulate)
@@ -384,6 +395,9 @@ def build_parser() -> argparse.ArgumentParser:
         from gfb_env.cli_schedule import add_schedule_command
 
         add_schedule_command(sub)
+        from gfb_env.cli_response import add_response_command
+
+        add_response_command(sub)
     return parser
 
 

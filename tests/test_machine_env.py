@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gfb_env.envs import ENV_IDS, RunUpEnv, RunUpRandomizedEnv, WhirlRecoveryEnv
+from gfb_env.envs import V0_IDS, RunUpEnv, RunUpRandomizedEnv, WhirlRecoveryEnv
 from gfb_env.envs.units import N_ROTOR_OBS, OBS_DAMPING, OBS_ETA, OBS_XI
 from gfb_env.machine import FoilDampingActuator, PressureTaps, ProximityProbes
 
@@ -88,7 +88,7 @@ def _episode(env, seed: int, policy: str) -> list:
     return out
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", V0_IDS)
 @pytest.mark.parametrize(
     "kwargs", [{}, {"observation_noise": 0.01, "disturbance_probability": 0.5}], ids=["plain", "noisy"]
 )
@@ -109,7 +109,7 @@ def test_ideal_machine_reproduces_v0_bit_for_bit_over_whole_episodes(env_id, kwa
         assert runs[1] == runs[0] and runs[2] == runs[0], (env_id, seed, policy)
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", V0_IDS)
 def test_realistic_machine_is_deterministic_and_snapshots_restore_it(env_id):
     env = gym.make(env_id, disturbance_probability=0.5, **REALISTIC, **FAST).unwrapped
     env.reset(seed=2)
@@ -215,7 +215,7 @@ def test_realistic_machine_survives_extreme_actions():
         ({"motor": {"max_acceleration_rpm_per_s": -5.0}}, "max_acceleration_rpm_per_s"),
     ],
 )
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", V0_IDS)
 def test_bad_machine_arguments_are_refused_by_name(env_id, kwargs, name):
     with pytest.raises(ValueError, match=name):
         gym.make(env_id, **kwargs)

@@ -5,6 +5,10 @@ Importing this package registers (idempotently):
 * ``gfb_env/RunUp-v0`` (:class:`~gfb_env.envs.run_up.RunUpEnv`, ``max_episode_steps=200``)
 * ``gfb_env/RunUpRandomized-v0`` (:class:`~gfb_env.envs.run_up_randomized.RunUpRandomizedEnv`, 250)
 * ``gfb_env/WhirlRecovery-v0`` (:class:`~gfb_env.envs.whirl_recovery.WhirlRecoveryEnv`, 200)
+* ``gfb_env/RunUp-v1``, ``gfb_env/RunUpRandomized-v1``, ``gfb_env/WhirlRecovery-v1``: the same tasks on
+  the instrumented machine (:data:`MACHINE_V1`: actuator lag and rate limit, noisy biased probes and
+  taps, random base shocks instead of the velocity kick, a residual unbalance; ``docs/machine.md``).
+  The v0 ids stay bit-for-bit reproducible.
 """
 
 from __future__ import annotations
@@ -16,6 +20,13 @@ from gfb_env.envs.base import DEFAULT_GRID, GFBEnv
 from gfb_env.envs.run_up import RunUpEnv
 from gfb_env.envs.run_up_randomized import RunUpRandomizedEnv
 from gfb_env.envs.whirl_recovery import WhirlRecoveryEnv
+from gfb_env.machine import (
+    FoilDampingActuator,
+    PressureTaps,
+    ProximityProbes,
+    RotorBalance,
+    ShockArrivals,
+)
 
 __all__ = [
     "GFBEnv",
@@ -25,22 +36,45 @@ __all__ = [
     "DEFAULT_GRID",
     "NOMINAL_BEARING",
     "ENV_IDS",
+    "V0_IDS",
+    "MACHINE_V1",
 ]
 
-#: registered ids -> (entry point, max_episode_steps)
+#: The instrumented machine of the v1 tasks (defaults and their reasons in ``docs/machine.md``).
+MACHINE_V1: dict = {
+    "damping_actuator": FoilDampingActuator(),
+    "proximity_probes": ProximityProbes(),
+    "pressure_taps": PressureTaps(),
+    "shock_arrivals": ShockArrivals(),
+    "rotor_balance": RotorBalance(),
+    "disturbance_probability": 0.0,  # physical shocks replace the legacy velocity kick
+}
+
+#: registered ids -> (entry point, max_episode_steps, default keyword arguments)
 _SPECS = {
-    "gfb_env/RunUp-v0": ("gfb_env.envs.run_up:RunUpEnv", 200),
-    "gfb_env/RunUpRandomized-v0": ("gfb_env.envs.run_up_randomized:RunUpRandomizedEnv", 250),
-    "gfb_env/WhirlRecovery-v0": ("gfb_env.envs.whirl_recovery:WhirlRecoveryEnv", 200),
+    "gfb_env/RunUp-v0": ("gfb_env.envs.run_up:RunUpEnv", 200, {}),
+    "gfb_env/RunUpRandomized-v0": ("gfb_env.envs.run_up_randomized:RunUpRandomizedEnv", 250, {}),
+    "gfb_env/WhirlRecovery-v0": ("gfb_env.envs.whirl_recovery:WhirlRecoveryEnv", 200, {}),
+    "gfb_env/RunUp-v1": ("gfb_env.envs.run_up:RunUpEnv", 200, MACHINE_V1),
+    # the damping's effectiveness is one more hidden parameter of the drawn bearing (paper Eq. 15:
+    # D_W is known only to an order of magnitude)
+    "gfb_env/RunUpRandomized-v1": (
+        "gfb_env.envs.run_up_randomized:RunUpRandomizedEnv",
+        250,
+        {**MACHINE_V1, "damping_actuator": FoilDampingActuator(gain_range=(0.5, 2.0))},
+    ),
+    "gfb_env/WhirlRecovery-v1": ("gfb_env.envs.whirl_recovery:WhirlRecoveryEnv", 200, MACHINE_V1),
 }
 ENV_IDS = tuple(_SPECS)
+#: the tasks of the published (v0) benchmark table
+V0_IDS = tuple(i for i in ENV_IDS if i.endswith("-v0"))
 
 
 def register_envs() -> None:
     """Register the tasks with Gymnasium (no-op for ids already registered)."""
-    for env_id, (entry_point, steps) in _SPECS.items():
+    for env_id, (entry_point, steps, kwargs) in _SPECS.items():
         if env_id not in registry:
-            register(id=env_id, entry_point=entry_point, max_episode_steps=steps)
+            register(id=env_id, entry_point=entry_point, max_episode_steps=steps, kwargs=dict(kwargs))
 
 
 register_envs()

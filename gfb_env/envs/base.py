@@ -31,6 +31,7 @@ clearance except through the physics.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -56,6 +57,7 @@ from gfb_env.envs.units import (
     ActionMap,
     ObservationLayout,
 )
+from gfb_env.forcing import HalfSineShock
 from gfb_env.integrator import IntegrationError, TrapezoidalIntegrator
 from gfb_env.machine import FoilDampingActuator, Motor, PressureTaps, ProximityProbes
 from gfb_env.model import GFBModel, Grid, Structure
@@ -250,6 +252,8 @@ class GFBEnv(gym.Env):
         actuator = act.start(setup.foil_damping, gain)
         probe_bias = self.proximity_probes.draw_bias(rng)
         tap_bias = self.pressure_taps.draw_bias(rng, self.n_pressure_probes)
+        unbalance, grade = self.config.rotor_balance.draw(rng, b, self.speed_range_rpm[1])
+        self._integ.set_unbalance(unbalance)
         self._ep = Episode(
             model=setup.model,
             bearing=b,
@@ -263,6 +267,7 @@ class GFBEnv(gym.Env):
             actuator=actuator,
             probe_bias_um=probe_bias,
             tap_bias_kpa=tap_bias,
+            balance_grade_mm_s=grade,
         )
         return self._emit()
 
@@ -326,7 +331,7 @@ class GFBEnv(gym.Env):
         dv = self.disturbance_magnitude / self._ep.velocity_scale
         s = L.with_rotor(s, xi, eta, xi_dot + dv * math.cos(angle), eta_dot + dv * math.sin(angle))
         # a discontinuity: restart the step history (deterministic, like any reset)
-        integ.reset(s, integ.bearing_number, integ.foil_damping, integ.tau)
+        integ.reset(s, integ.bearing_number, integ.foil_damping, integ.tau, integ.rotation_angle)
         return True
 
     def _advance_plant(self, bearing_number: float, foil_damping: float) -> tuple[StepOutcome, PlantTrace]:
@@ -335,6 +340,7 @@ class GFBEnv(gym.Env):
         lam0 = integ.bearing_number
         touchdown = failure = False
         steps = 0
+        self._schedule_shocks()
         try:
             res = integ.advance(
                 integ.tau + self.control_interval,
@@ -363,6 +369,19 @@ class GFBEnv(gym.Env):
             min_h = ep.model.min_film_thickness(integ.state)
         out = StepOutcome(lam0, integ.bearing_number, integ.foil_damping, amp, min_h, touchdown, failure)
         return out, PlantTrace(xr, er, orbit, steps)
+
+    def _schedule_shocks(self) -> None:
+        """Random base shocks starting in this control step (drawn from ``self.np_random``; none and no
+        draw without shock arrivals), handed to the integrator as half-sine pulses."""
+        integ, ep, b = self._integ, self._ep, self._ep.bearing
+        t0 = b.seconds(integ.tau)
+        events = self.config.shock_arrivals.draw(self.np_random, t0, t0 + b.seconds(self.control_interval))
+        for e in events:
+            shock = HalfSineShock.from_physical(b, e.time_s, e.peak_g, e.duration_ms, e.direction_deg)
+            # tau -> s -> tau may round below the current time by an ulp
+            integ.add_shock(dataclasses.replace(shock, start_tau=max(shock.start_tau, integ.tau)))
+        ep.shocks = tuple(events)
+        ep.shock_count += len(events)
 
     # ---- judge --------------------------------------------------------------------------------
     def _judge(self, out: StepOutcome, trace: PlantTrace, a: np.ndarray, sanitised: bool, kick: bool) -> None:
@@ -434,6 +453,8 @@ class GFBEnv(gym.Env):
         else:
             cnom_um = nb.clearance_m * 1e6
             xs, es = ep.orbit
+            if len(xs) == 0:  # a step that ended at once (touchdown in its first integrator step)
+                xs, es = np.array([xi]), np.array([eta])
             err = probes.measurement_errors(
                 self.np_random,
                 np.asarray(xs) * c_um,
@@ -465,6 +486,10 @@ class GFBEnv(gym.Env):
             "bearing_number": lam,
             "foil_damping": integ.foil_damping,
             "damping_gain": ep.actuator.gain,
+            "balance_grade_mm_s": ep.balance_grade_mm_s,
+            "unbalance_um": b.micrometres(integ.unbalance.magnitude) if integ.unbalance is not None else 0.0,
+            "shocks": len(ep.shocks),
+            "shock_peak_g": max((e.peak_g for e in ep.shocks), default=0.0),
             "probe_x_um": float(ep.probe_readings_um[0]),
             "probe_y_um": float(ep.probe_readings_um[1]),
             "speed_rpm": b.speed_rpm_at(lam),

@@ -16,7 +16,14 @@ import numpy as np
 
 from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.integrator_options import IntegratorOptions
-from gfb_env.machine import FoilDampingActuator, Motor, PressureTaps, ProximityProbes
+from gfb_env.machine import (
+    FoilDampingActuator,
+    Motor,
+    PressureTaps,
+    ProximityProbes,
+    RotorBalance,
+    ShockArrivals,
+)
 from gfb_env.machine._checks import component
 from gfb_env.model import Grid
 from gfb_env.params import BearingParameters
@@ -120,6 +127,11 @@ class EnvConfig:
             dict); default ideal (v0: exact positions, velocities and envelopes).
         pressure_taps: the midplane pressure taps (:class:`~gfb_env.machine.PressureTaps` or a dict);
             default ideal (v0: exact pressures).
+        shock_arrivals: random base shocks (:class:`~gfb_env.machine.ShockArrivals` or a dict), half-sine
+            pulses through the rotor equations; default none (v0).  Exclusive with the legacy velocity
+            kick (``disturbance_probability``): a task uses one or the other.
+        rotor_balance: the rotor's residual unbalance, an ISO balance grade drawn per episode
+            (:class:`~gfb_env.machine.RotorBalance` or a dict); default perfectly balanced (v0).
     """
 
     grid: Grid = field(default_factory=lambda: Grid.parse(DEFAULT_GRID))
@@ -141,6 +153,8 @@ class EnvConfig:
     damping_actuator: FoilDampingActuator = field(default_factory=FoilDampingActuator.ideal)
     proximity_probes: ProximityProbes = field(default_factory=ProximityProbes.ideal)
     pressure_taps: PressureTaps = field(default_factory=PressureTaps.ideal)
+    shock_arrivals: ShockArrivals = field(default_factory=ShockArrivals.none)
+    rotor_balance: RotorBalance = field(default_factory=RotorBalance.perfect)
 
     def __post_init__(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -187,6 +201,13 @@ class EnvConfig:
         put("damping_actuator", component("damping_actuator", FoilDampingActuator, self.damping_actuator))
         put("proximity_probes", component("proximity_probes", ProximityProbes, self.proximity_probes))
         put("pressure_taps", component("pressure_taps", PressureTaps, self.pressure_taps))
+        put("shock_arrivals", component("shock_arrivals", ShockArrivals, self.shock_arrivals))
+        put("rotor_balance", component("rotor_balance", RotorBalance, self.rotor_balance))
+        if self.shock_arrivals.rate_per_s > 0 and self.disturbance_probability > 0:
+            raise ValueError(
+                "shock_arrivals and disturbance_probability > 0 exclude each other: physical shocks replace "
+                "the legacy velocity kick (set disturbance_probability=0)"
+            )
 
     def _resolve_motor(self, put: Any) -> None:
         """One acceleration limit: ``motor`` and ``max_acceleration_rpm_per_s`` agree (either may be

@@ -106,6 +106,10 @@ class Episode:
             episode's effectiveness gain).
         probe_bias_um, tap_bias_kpa: this episode's sensor offsets ((X, Y) in um; one per tap in kPa).
         probe_readings_um: the (X, Y) probe readings of the last observation, um.
+        balance_grade_mm_s: this episode's ISO balance grade (0: perfectly balanced); the unbalance
+            itself lives in the integrator (part of its snapshot).
+        shocks: base shocks that started in the last control step (:class:`~gfb_env.machine.ShockEvent`).
+        shock_count: base shocks since reset.
     """
 
     model: GFBModel
@@ -134,6 +138,9 @@ class Episode:
     probe_bias_um: np.ndarray = field(default_factory=lambda: np.zeros(2))
     tap_bias_kpa: np.ndarray = field(default_factory=lambda: np.zeros(0))
     probe_readings_um: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    balance_grade_mm_s: float = 0.0
+    shocks: tuple = ()
+    shock_count: int = 0
 
     @property
     def done(self) -> bool:

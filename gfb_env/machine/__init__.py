@@ -7,7 +7,9 @@
   side of the vertical), bias and noise in um;
 * :class:`~gfb_env.machine.pressure_taps.PressureTaps`: midplane pressure taps, offset and noise in kPa;
 * :class:`~gfb_env.machine.shocks.ShockArrivals`: random base shocks (Poisson arrivals) as
-  :class:`~gfb_env.machine.shocks.ShockEvent` records.
+  :class:`~gfb_env.machine.shocks.ShockEvent` records;
+* :class:`~gfb_env.machine.balance.RotorBalance`: the rotor's residual unbalance, an ISO balance grade
+  drawn per episode.
 
 Each is a small frozen, validated configuration with physical units in its field names; the defaults
 are realistic and justified in ``docs/machine.md``, and each sensor/actuator has an ``ideal()`` that
@@ -18,6 +20,7 @@ reproduces the v0 environments exactly.  The envs take them as constructor argum
 from __future__ import annotations
 
 from gfb_env.machine.actuator import DampingActuatorState, FoilDampingActuator
+from gfb_env.machine.balance import RotorBalance
 from gfb_env.machine.motor import Motor
 from gfb_env.machine.pressure_taps import PressureTaps
 from gfb_env.machine.probes import ProbeErrors, ProximityProbes
@@ -30,6 +33,7 @@ __all__ = [
     "PressureTaps",
     "ProbeErrors",
     "ProximityProbes",
+    "RotorBalance",
     "ShockArrivals",
     "ShockEvent",
 ]

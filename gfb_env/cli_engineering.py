@@ -379,7 +379,9 @@ def cmd_runup(args: argparse.Namespace) -> int:
     crit_rpm = None if lam_c is None else b.speed_rpm_at(lam_c)
     _plot_waterfall(wf, b, out / "waterfall.png", args.nondimensional, title, ratio)
     _plot_orbits(res, b, c["orbit_rpm"], args.window, out / "orbits.png", args.nondimensional, title)
-    _plot_envelope(env, b, out / "envelope.png", args.nondimensional, title, lam_c)
+    _plot_envelope(
+        env, b, out / "envelope.png", args.nondimensional, title, lam_c, c["unbalance"] is not None
+    )
     d = {
         "structure": model.structure.value,
         "grid": str(model.grid),
@@ -506,7 +508,9 @@ def _plot_orbits(res, b, orbit_rpm, window, path: Path, nondim: bool, title: str
     plt.close(fig)
 
 
-def _plot_envelope(env, b, path: Path, nondim: bool, title: str, lam_c: float | None) -> None:
+def _plot_envelope(
+    env, b, path: Path, nondim: bool, title: str, lam_c: float | None, sync: bool = False
+) -> None:
     from gfb_env._plotting import plt
 
     c = 1.0 if nondim else b.clearance_m * 1e6
@@ -525,17 +529,22 @@ def _plot_envelope(env, b, path: Path, nondim: bool, title: str, lam_c: float | 
         a.sharex(ax[0])
         a.grid(alpha=0.3)
     ax[2].set_xlabel(r"$\tau$" if nondim else "time (s)")
-    amp = 0.5 * (env["xi_max"] - env["xi_min"]) * c
+    amp = env["whirl"] * c
     for leg, style, lab in ((0, "-", "run-up"), (1, "--", "coast-down")):
         m = env["leg"] == leg
         if m.any():
-            ax[3].plot(sp[m], amp[m], "k" + style, lw=1.2, label=lab)
+            ax[3].plot(sp[m], amp[m], "k" + style, lw=1.2, label=lab + (" (non-synchronous)" if sync else ""))
+            if sync:  # the order-tracked 1x response beside the whirl
+                ax[3].plot(sp[m], c * env["sync_xi"][m], "tab:red", ls=style, lw=1, label=f"1x x, {lab}")
+                ax[3].plot(sp[m], c * env["sync_eta"][m], "tab:blue", ls=style, lw=1, label=f"1x y, {lab}")
     if lam_c is not None:
         xc = lam_c if nondim else b.speed_rpm_at(lam_c)
         lab = f"linear onset Lambda_c = {xc:.4f}" if nondim else f"linear critical speed {xc:.0f} rpm"
         ax[3].axvline(xc, color="tab:red", ls="-.", lw=1, label=lab)
     ax[3].set_xlabel(r"$\Lambda$" if nondim else "speed (rpm)")
-    ax[3].set_ylabel("whirl amplitude (C)" if nondim else "whirl amplitude (um)")
+    ax[3].set_ylabel("amplitude (C)" if nondim else "amplitude (um)")
+    if sync:
+        ax[3].set_yscale("log")  # the 1x orbit (~um) beside a whirl (~C)
     ax[3].legend(fontsize=8)
     ax[3].grid(alpha=0.3)
     fig.suptitle(f"Run-up envelopes (paper Fig. 5): {title}", fontsize=10)

@@ -272,16 +272,18 @@ def unbalance_from_args(args: argparse.Namespace, bearing: BearingParameters, sp
 
     phase = math.radians(args.unbalance_phase_deg)
     if args.unbalance is not None:
-        u = Unbalance(args.unbalance, phase)
+        u, option = Unbalance(args.unbalance, phase), "--unbalance"
     elif args.unbalance_g_mm is not None:
         u = Unbalance.from_mass_radius(bearing, args.unbalance_g_mm, args.rotor_mass_kg, phase)
+        option = "--unbalance-g-mm"
     elif args.balance_grade is not None:
         u = Unbalance.from_iso1940(bearing, args.balance_grade, speed_rpm, args.rotor_mass_kg, phase)
+        option = f"--balance-grade (at {speed_rpm:.0f} rpm)"
     else:
         return None
     if not u.magnitude < 1.0:
         raise ValueError(
-            f"the unbalance is {u.magnitude:.3g} clearances (centre-of-mass eccentricity "
+            f"{option}: the unbalance is {u.magnitude:.3g} clearances (centre-of-mass eccentricity "
             f"{u.eccentricity_um(bearing):.3g} um >= C): it must be below 1"
         )
     return u

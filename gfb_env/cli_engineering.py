@@ -18,12 +18,14 @@ import numpy as np
 from gfb_env import jsonio
 from gfb_env._cli_common import (
     add_model_options,
+    add_unbalance_options,
     check_output_dir,
     finite,
     in_range,
     int_range,
     model_from_args,
     positive,
+    unbalance_from_args,
 )
 
 __all__ = ["add_engineering_commands", "cmd_campbell", "cmd_runup"]
@@ -261,7 +263,17 @@ def check_runup_args(args: argparse.Namespace, model) -> dict:
                 f"--orbit-rpm {bad[0]:g} lies outside the speed range {lo_rpm:.0f}-{hi_rpm:.0f} rpm"
             )
     out = check_output_dir(args.out, "--out", _RUNUP_FILES)
-    return {"lo": lo, "hi": hi, "rate": rate, "duration": duration, "orbit_rpm": orbit, "out": out}
+    # a balance grade is the rotor's permissible unbalance at its top (service) speed
+    unbalance = unbalance_from_args(args, b, b.speed_rpm_at(hi))
+    return {
+        "lo": lo,
+        "hi": hi,
+        "rate": rate,
+        "duration": duration,
+        "orbit_rpm": orbit,
+        "out": out,
+        "unbalance": unbalance,
+    }
 
 
 def cmd_runup(args: argparse.Namespace) -> int:
@@ -292,6 +304,7 @@ def cmd_runup(args: argparse.Namespace) -> int:
         record_interval=args.record_interval,
         touchdown=args.touchdown,
         progress=not args.json,
+        unbalance=c["unbalance"],
     )
     tr = res.trajectory
     env = envelopes(res, args.window)
@@ -319,7 +332,7 @@ def cmd_runup(args: argparse.Namespace) -> int:
         fmt="%.8g",
     )
     env_rpm = np.array([b.speed_rpm_at(x) for x in env["bearing_number"]])
-    amp = 0.5 * (env["xi_max"] - env["xi_min"])
+    amp = env["whirl"]  # with an unbalance: the non-synchronous part (see gfb_env.analysis.runup)
     np.savetxt(
         out / "envelope.csv",
         np.column_stack(
@@ -334,11 +347,14 @@ def cmd_runup(args: argparse.Namespace) -> int:
                 env["eta_max"] * um,
                 env["eps_max"] * um,
                 env["hmin"] * um,
+                env["sync_xi"] * um,
+                env["sync_eta"] * um,
+                amp * um,
             ]
         ),  # fmt: skip
         delimiter=",",
         header="time_s,speed_rpm,bearing_number,leg,xi_min_um,xi_max_um,eta_min_um,eta_max_um,"
-        "max_eccentricity_um,min_film_thickness_um",
+        "max_eccentricity_um,min_film_thickness_um,sync_xi_um,sync_eta_um,whirl_amplitude_um",
         comments="",
         fmt="%.8g",
     )
@@ -350,6 +366,12 @@ def cmd_runup(args: argparse.Namespace) -> int:
     j_top = int(np.nonzero(wf.leg == 0)[0][-1])
     k = 1 + int(np.argmax(wf.amplitude[j_top, 1:]))
     ratio = float(wf.omega[k] / wf.bearing_number[j_top])
+    # the 1x (order-tracked) response: at the top speed of the run-up and its largest value
+    ub = c["unbalance"]
+    i_up = np.nonzero(env["leg"] == 0)[0]
+    i_top = int(i_up[-1])
+    sync = np.maximum(env["sync_xi"], env["sync_eta"])
+    i_max = int(np.argmax(sync))
     title = (
         f"{model.structure.value} foil, K_W={model.foil_stiffness:.3g}, D_W={args.foil_damping:.3g}, "
         f"{args.acceleration:g} rpm/s"
@@ -357,7 +379,9 @@ def cmd_runup(args: argparse.Namespace) -> int:
     crit_rpm = None if lam_c is None else b.speed_rpm_at(lam_c)
     _plot_waterfall(wf, b, out / "waterfall.png", args.nondimensional, title, ratio)
     _plot_orbits(res, b, c["orbit_rpm"], args.window, out / "orbits.png", args.nondimensional, title)
-    _plot_envelope(env, b, out / "envelope.png", args.nondimensional, title, lam_c)
+    _plot_envelope(
+        env, b, out / "envelope.png", args.nondimensional, title, lam_c, c["unbalance"] is not None
+    )
     d = {
         "structure": model.structure.value,
         "grid": str(model.grid),
@@ -368,6 +392,9 @@ def cmd_runup(args: argparse.Namespace) -> int:
         "acceleration_rpm_s": args.acceleration,
         "bearing_number_rate": c["rate"],
         "coast_down": bool(args.coast_down),
+        "unbalance": 0.0 if ub is None else ub.magnitude,
+        "unbalance_um": 0.0 if ub is None else ub.eccentricity_um(b),
+        "unbalance_g_mm": 0.0 if ub is None else ub.mass_radius_g_mm(b, args.rotor_mass_kg),
         "duration_tau": float(tr.tau[-1]),
         "duration_s": float(tr.tau[-1]) * b.time_scale_s,
         "status": res.status,
@@ -382,6 +409,11 @@ def cmd_runup(args: argparse.Namespace) -> int:
         "max_eccentricity_um": float(tr.eccentricity.max()) * um,
         "min_film_thickness_um": float(tr.min_film_thickness.min()) * um,
         "top_speed_dominant_order": ratio,
+        "top_speed_1x_speed_rpm": float(env_rpm[i_top]),
+        "top_speed_1x_xi_um": float(env["sync_xi"][i_top]) * um,
+        "top_speed_1x_eta_um": float(env["sync_eta"][i_top]) * um,
+        "max_1x_amplitude_um": float(sync[i_max]) * um,
+        "max_1x_speed_rpm": float(env_rpm[i_max]),
         "steps": res.steps,
         "files": {k: str(out / k) for k in _RUNUP_FILES},
         "wall_time_s": time.perf_counter() - t0,
@@ -399,6 +431,13 @@ def cmd_runup(args: argparse.Namespace) -> int:
             f"  max whirl amplitude {d['max_whirl_amplitude_um']:.1f} um, "
             f"min film {d['min_film_thickness_um']:.1f} um"
         )
+        if ub is not None:
+            print(
+                f"  unbalance U = {ub.magnitude:.4g} ({d['unbalance_um']:.3g} um): 1x at "
+                f"{d['top_speed_1x_speed_rpm']:.0f} rpm x {d['top_speed_1x_xi_um']:.3g} um, y "
+                f"{d['top_speed_1x_eta_um']:.3g} um; largest 1x {d['max_1x_amplitude_um']:.3g} um at "
+                f"{d['max_1x_speed_rpm']:.0f} rpm"
+            )
         print(f"  wrote {out}/ ({d['wall_time_s']:.1f} s)")
     return 0 if res.status in ("done", "touchdown") else 1
 
@@ -469,7 +508,9 @@ def _plot_orbits(res, b, orbit_rpm, window, path: Path, nondim: bool, title: str
     plt.close(fig)
 
 
-def _plot_envelope(env, b, path: Path, nondim: bool, title: str, lam_c: float | None) -> None:
+def _plot_envelope(
+    env, b, path: Path, nondim: bool, title: str, lam_c: float | None, sync: bool = False
+) -> None:
     from gfb_env._plotting import plt
 
     c = 1.0 if nondim else b.clearance_m * 1e6
@@ -488,17 +529,22 @@ def _plot_envelope(env, b, path: Path, nondim: bool, title: str, lam_c: float | 
         a.sharex(ax[0])
         a.grid(alpha=0.3)
     ax[2].set_xlabel(r"$\tau$" if nondim else "time (s)")
-    amp = 0.5 * (env["xi_max"] - env["xi_min"]) * c
+    amp = env["whirl"] * c
     for leg, style, lab in ((0, "-", "run-up"), (1, "--", "coast-down")):
         m = env["leg"] == leg
         if m.any():
-            ax[3].plot(sp[m], amp[m], "k" + style, lw=1.2, label=lab)
+            ax[3].plot(sp[m], amp[m], "k" + style, lw=1.2, label=lab + (" (non-synchronous)" if sync else ""))
+            if sync:  # the order-tracked 1x response beside the whirl
+                ax[3].plot(sp[m], c * env["sync_xi"][m], "tab:red", ls=style, lw=1, label=f"1x x, {lab}")
+                ax[3].plot(sp[m], c * env["sync_eta"][m], "tab:blue", ls=style, lw=1, label=f"1x y, {lab}")
     if lam_c is not None:
         xc = lam_c if nondim else b.speed_rpm_at(lam_c)
         lab = f"linear onset Lambda_c = {xc:.4f}" if nondim else f"linear critical speed {xc:.0f} rpm"
         ax[3].axvline(xc, color="tab:red", ls="-.", lw=1, label=lab)
     ax[3].set_xlabel(r"$\Lambda$" if nondim else "speed (rpm)")
-    ax[3].set_ylabel("whirl amplitude (C)" if nondim else "whirl amplitude (um)")
+    ax[3].set_ylabel("amplitude (C)" if nondim else "amplitude (um)")
+    if sync:
+        ax[3].set_yscale("log")  # the 1x orbit (~um) beside a whirl (~C)
     ax[3].legend(fontsize=8)
     ax[3].grid(alpha=0.3)
     fig.suptitle(f"Run-up envelopes (paper Fig. 5): {title}", fontsize=10)
@@ -581,18 +627,25 @@ def add_engineering_commands(subparsers) -> None:
         description=(
             "Transient run-up at --acceleration rpm/s from the perturbed static equilibrium at the first\n"
             "speed (optionally back down with --coast-down), integrated with the adaptive trapezoidal\n"
-            "rule (Lambda ramps linearly within each step).  No unbalance yet (see\n"
-            "gfb_env.analysis.runup).  Writes OUT/trajectory.csv (tau, time_s, speed_rpm,\n"
-            "bearing_number, leg, xi_um, eta_um, min_film_thickness_um), OUT/envelope.csv (per window),\n"
+            "rule (Lambda ramps linearly within each step).  With an unbalance (--unbalance,\n"
+            "--unbalance-g-mm or --balance-grade, the grade taken at the top speed) the rotor carries it\n"
+            "from the start: the waterfall shows the 1x line, envelope.csv its order-tracked amplitude,\n"
+            "and the whirl amplitude is then the non-synchronous part (xi minus its 1x fit).\n"
+            "Writes OUT/trajectory.csv (tau, time_s, speed_rpm,\n"
+            "bearing_number, leg, xi_um, eta_um, min_film_thickness_um), OUT/envelope.csv (per window,\n"
+            "with sync_xi_um, sync_eta_um, whirl_amplitude_um),\n"
             "OUT/waterfall.png (spectra of x vs speed with the 1x and 0.43x lines), OUT/orbits.png\n"
             "(at --orbit-rpm), OUT/envelope.png (the paper's Fig. 5 in s, rpm and um, and the whirl\n"
             "amplitude vs speed with the linear critical speed) and OUT/summary.json.\n\n"
             "JSON keys: structure, grid, foil_stiffness, foil_damping, speed_rpm_range,\n"
-            "bearing_number_range, acceleration_rpm_s, bearing_number_rate, coast_down, duration_tau,\n"
+            "bearing_number_range, acceleration_rpm_s, bearing_number_rate, coast_down, unbalance,\n"
+            "unbalance_um, unbalance_g_mm, duration_tau,\n"
             "duration_s, status, message, touchdown_speed_rpm, critical_speed_rpm,\n"
             "whirl_onset_speed_rpm, whirl_collapse_speed_rpm (half peak-to-peak x above 0.02 C),\n"
             "max_whirl_amplitude_um, max_eccentricity_um, min_film_thickness_um,\n"
-            "top_speed_dominant_order, steps, files, wall_time_s."
+            "top_speed_dominant_order, top_speed_1x_speed_rpm, top_speed_1x_xi_um,\n"
+            "top_speed_1x_eta_um, max_1x_amplitude_um, max_1x_speed_rpm (order-tracked zero-to-peak\n"
+            "1x amplitudes per window), steps, files, wall_time_s."
         ),
     )
     add_model_options(p)
@@ -608,6 +661,7 @@ def add_engineering_commands(subparsers) -> None:
         "tau = 250 000",
     )
     p.add_argument("--coast-down", action="store_true", help="ramp back down to the first speed")
+    add_unbalance_options(p)
     p.add_argument(
         "--orbit-rpm",
         default=None,

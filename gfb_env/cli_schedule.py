@@ -18,11 +18,13 @@ import numpy as np
 from gfb_env import jsonio
 from gfb_env._cli_common import (
     add_bearing_option,
+    add_unbalance_options,
     check_output_dir,
     grid_type,
     in_range,
     int_range,
     positive,
+    unbalance_from_args,
 )
 from gfb_env.model import Grid
 
@@ -43,7 +45,10 @@ def add_schedule_command(subparsers) -> None:
             "highest Lambda_c, and the damping with the highest safe speed\n"
             "min((1 - margin) Lambda_c, Lambda_fold).  The schedule ramps at --acceleration at that\n"
             "damping to the target, or, if the target is above the safe speed, to the safe speed (the\n"
-            "target is reported infeasible), then holds; a transient run verifies it.\n\n"
+            "target is reported infeasible), then holds; a transient run verifies it.  With an\n"
+            "unbalance (--unbalance, --unbalance-g-mm or --balance-grade, the grade taken at the target\n"
+            "speed; default: none) the verification carries it from the start, and the last 500 tau of\n"
+            "the hold are split into the 1x orbit and the non-synchronous motion (the whirl).\n\n"
             "Writes OUT/schedule.csv (time_s, speed_rpm, foil_damping), OUT/stability_curve.csv\n"
             "(foil_damping, critical_speed_rpm, fold_speed_rpm), OUT/schedule.png (the map with the path)\n"
             "and OUT/summary.json.\n\n"
@@ -51,7 +56,10 @@ def add_schedule_command(subparsers) -> None:
             "critical_speed_rpm, fold_speed_rpm, max_safe_speed_rpm, end_speed_rpm, start_speed_rpm,\n"
             "margin, margin_to_critical, margin_to_fold, acceleration_rpm_s, ramp_time_s, hold_time_s,\n"
             "verified_status, verified_max_whirl_amplitude_um, verified_min_film_thickness_um,\n"
-            "verified_max_eccentricity_um, notes, files, wall_time_s."
+            "verified_max_eccentricity_um, unbalance, unbalance_um, unbalance_g_mm, verified_1x_xi_um,\n"
+            "verified_1x_eta_um, verified_max_vibration_amplitude_um, linear_1x_xi_um,\n"
+            "linear_1x_eta_um, notes, files, wall_time_s.  With an unbalance the whirl amplitude is\n"
+            "the non-synchronous part; the vibration amplitude includes the 1x orbit."
         ),
     )
     add_bearing_option(p)
@@ -124,6 +132,7 @@ def add_schedule_command(subparsers) -> None:
         metavar="NPHIxNZ",
         help="finite-difference grid (default 31x7: Lambda_c within 1 %% of 79x7, docs/envs.md)",
     )
+    add_unbalance_options(p)
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=cmd_schedule)
@@ -149,6 +158,8 @@ def cmd_schedule(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise ValueError(f"--grid: {exc}") from None
     out = check_output_dir(args.out, "--out", _FILES)
+    # a balance grade is the permissible unbalance at the service speed: the target
+    unbalance = unbalance_from_args(args, b, args.target_rpm)
     rate = bearing_number_rate(model, args.acceleration)
     ramp_tau = (b.bearing_number_at(args.target_rpm) - b.bearing_number_at(args.start_rpm or 0.0)) / rate
     if ramp_tau > 250_000:
@@ -168,7 +179,12 @@ def cmd_schedule(args: argparse.Namespace) -> int:
         fold_dampings=args.fold_dampings,
         hold_tau=args.hold,
     )
-    ver = verify_schedule(sch)
+    ver = verify_schedule(sch, unbalance=unbalance)
+    lin = None
+    if unbalance is not None:  # the linear 1x orbit at the end speed, beside the measured one
+        from gfb_env.analysis.response import unbalance_response
+
+        lin = unbalance_response(model, sch.end_bearing_number, unbalance, sch.foil_damping, stability=False)
     out.mkdir(parents=True, exist_ok=True)
     path = sch.path()
     with (out / "schedule.csv").open("w", newline="") as fh:
@@ -215,6 +231,14 @@ def cmd_schedule(args: argparse.Namespace) -> int:
         "verified_max_whirl_amplitude_um": ver.max_whirl_amplitude * um,
         "verified_min_film_thickness_um": ver.min_film_thickness * um,
         "verified_max_eccentricity_um": ver.max_eccentricity * um,
+        "unbalance": ver.unbalance,
+        "unbalance_um": 0.0 if unbalance is None else unbalance.eccentricity_um(b),
+        "unbalance_g_mm": 0.0 if unbalance is None else unbalance.mass_radius_g_mm(b, args.rotor_mass_kg),
+        "verified_1x_xi_um": ver.synchronous_xi * um,
+        "verified_1x_eta_um": ver.synchronous_eta * um,
+        "verified_max_vibration_amplitude_um": ver.max_vibration_amplitude * um,
+        "linear_1x_xi_um": 0.0 if lin is None else lin.xi_amplitude * um,
+        "linear_1x_eta_um": 0.0 if lin is None else lin.eta_amplitude * um,
         "notes": list(sch.notes),
         "files": {k: str(out / k) for k in _FILES},
         "wall_time_s": time.perf_counter() - t0,
@@ -234,6 +258,13 @@ def cmd_schedule(args: argparse.Namespace) -> int:
             f"  verified: {ver.status}, whirl {d['verified_max_whirl_amplitude_um']:.3g} um, "
             f"min film {d['verified_min_film_thickness_um']:.2f} um"
         )
+        if unbalance is not None:
+            print(
+                f"  unbalance U = {ver.unbalance:.4g} ({d['unbalance_um']:.3g} um): the whirl above is the "
+                f"non-synchronous part; 1x orbit x {d['verified_1x_xi_um']:.3g} um, y "
+                f"{d['verified_1x_eta_um']:.3g} um (linear: {d['linear_1x_xi_um']:.3g}, "
+                f"{d['linear_1x_eta_um']:.3g} um), total {d['verified_max_vibration_amplitude_um']:.3g} um"
+            )
         for n in sch.notes:
             print(f"  note: {n}")
         print(f"  wrote {out}/ ({d['wall_time_s']:.1f} s)")

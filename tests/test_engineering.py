@@ -2,6 +2,7 @@
 
 import csv
 import json
+import math
 import time
 from pathlib import Path
 
@@ -123,7 +124,10 @@ def test_runup_ramp_outputs_and_onset_after_the_linear_critical_speed(tmp_path, 
     for name in ("waterfall.png", "orbits.png", "envelope.png"):
         assert 20_000 < (tmp_path / name).stat().st_size < 200_000
     env = np.loadtxt(tmp_path / "envelope.csv", delimiter=",", skiprows=1)
-    assert env.shape[1] == 10 and np.all(env[:, 4] <= env[:, 5])
+    assert env.shape[1] == 13 and np.all(env[:, 4] <= env[:, 5])
+    # no unbalance: the whirl column is the half peak-to-peak of x, as before
+    assert np.allclose(env[:, 12], 0.5 * (env[:, 5] - env[:, 4]), rtol=1e-6, atol=1e-5)
+    assert d["unbalance"] == 0.0 and d["unbalance_um"] == 0.0
 
 
 def test_runup_stops_at_touchdown_and_reports_the_speed(tmp_path, capsys):
@@ -137,6 +141,71 @@ def test_runup_stops_at_touchdown_and_reports_the_speed(tmp_path, capsys):
     assert d["min_film_thickness_um"] < 0.15 * 50
 
 
+# ---------------------------------------------------------------------------- runup + unbalance
+#: sub-critical run (Table 1, D_W = 4: critical ~33 300 rpm on 33x7), slow enough for the 1x orbit
+#: to follow the speed (Lambda 0.30 -> 0.45 over ~2 800 tau)
+UNBALANCED_RUNUP = ["--grid", "33x7", "--foil-damping", "4", "--speed-range", "18000", "27000",
+                    "--acceleration", "20000", "--perturbation", "0", "0"]  # fmt: skip
+
+
+def test_runup_with_unbalance_the_1x_line_is_the_linear_response(tmp_path, capsys):
+    """Issue 12 with issue 10's unbalance: the order-tracked 1x amplitude of each window equals the
+    linear unbalance response at the window's speed; without the unbalance the 1x line is ~0."""
+    from gfb_env.analysis.response import unbalance_response
+    from gfb_env.forcing import Unbalance
+    from gfb_env.model import GFBModel
+    from gfb_env.params import BearingParameters
+
+    b = BearingParameters()
+    code, out, _ = run(capsys, "runup", *UNBALANCED_RUNUP, "--balance-grade", "2.5", "--out",
+                       tmp_path / "u", "--json")  # fmt: skip
+    d = json.loads(out)
+    assert code == 0 and d["status"] == "done", d
+    u = Unbalance.from_iso1940(b, 2.5, 27_000)  # the grade at the top speed
+    assert d["unbalance"] == pytest.approx(u.magnitude, rel=1e-12)
+    assert d["unbalance_um"] == pytest.approx(u.magnitude * 50.0, rel=1e-12)
+    assert d["top_speed_dominant_order"] == pytest.approx(1.0, abs=0.01)  # the 1x line dominates
+    env = np.loadtxt(tmp_path / "u" / "envelope.csv", delimiter=",", skiprows=1)
+    model = GFBModel("viscoelastic", "33x7")
+    for j in (3, len(env) // 2, len(env) - 1):  # after the switch-on transient, mid-range, top
+        lin = unbalance_response(model, env[j, 2], u, 4.0, stability=False)
+        assert env[j, 10] == pytest.approx(lin.xi_amplitude * 50, rel=0.02), j
+        assert env[j, 11] == pytest.approx(lin.eta_amplitude * 50, rel=0.02), j
+    assert d["top_speed_1x_eta_um"] == pytest.approx(env[-1, 11], rel=1e-6)
+    assert d["max_1x_amplitude_um"] >= d["top_speed_1x_eta_um"] > 0.5
+    # the whirl column is the non-synchronous rest: far below the 1x orbit once settled
+    assert np.all(env[3:, 12] < 0.2 * env[3:, 11]) and d["whirl_onset_speed_rpm"] is None
+    code, out, _ = run(capsys, "runup", *UNBALANCED_RUNUP, "--out", tmp_path / "0", "--json")
+    d0 = json.loads(out)
+    assert code == 0 and d0["unbalance"] == 0.0
+    assert d0["max_1x_amplitude_um"] < 1e-3 * d["max_1x_amplitude_um"]
+
+
+def test_runup_waterfall_1x_line_and_the_rotation_angle():
+    """The waterfall's 1x line (Hann spectrum, interpolated peak) carries the linear response, and the
+    closed-form rotation angle of the samples is the one the integrator carried."""
+    from gfb_env.analysis.response import unbalance_response
+    from gfb_env.analysis.runup import bearing_number_rate, ramp_rotation_angle, run_up, waterfall
+    from gfb_env.forcing import Unbalance
+    from gfb_env.model import GFBModel
+
+    model = GFBModel("viscoelastic", "33x7")
+    rate = bearing_number_rate(model, 20_000)
+    lams = (0.3, 0.45)
+    res = run_up(model, 4.0, lams, rate, perturbation=(0, 0), unbalance=Unbalance(0.02, 1.0))
+    assert res.status == "done"
+    theta_end = ramp_rotation_angle(np.array([res.tau_ramp]), lams, rate, res.tau_ramp)[0]
+    assert math.remainder(theta_end - res.final_rotation_angle, 2 * math.pi) == pytest.approx(0, abs=1e-8)
+    wf = waterfall(res, 256.0)
+    a1 = wf.order_amplitude(1.0)
+    for j in (2, len(a1) // 2, len(a1) - 1):
+        lin = unbalance_response(model, wf.bearing_number[j], 0.02, 4.0, stability=False)
+        assert a1[j] == pytest.approx(lin.xi_amplitude, rel=0.04), j
+    assert np.all(wf.order_amplitude(0.43)[2:] < 0.02 * a1[2:])  # no whirl line
+    res0 = run_up(model, 4.0, lams, rate, perturbation=(0, 0))
+    assert np.all(waterfall(res0, 256.0).order_amplitude(1.0) < 1e-4 * a1.max())
+
+
 HOSTILE_RUNUP = [
     (["runup", "--out", "{out}", "--acceleration", "1"], "--acceleration", "at most 250000"),
     (["runup", "--out", "{out}", "--orbit-rpm", "90000"], "--orbit-rpm", "outside the speed range"),
@@ -146,7 +215,17 @@ HOSTILE_RUNUP = [
     (["runup", "--out", "{out}", "--perturbation", "3", "0"], "--perturbation", "may move less than"),
     (["runup", "--out", "{out}", "--speed-range", "9", "3"], "--speed-range", "0 < MIN < MAX"),
     (["runup", "--out", "{file}/x"], "--out", "is a file"),
-]
+    (["runup", "--out", "{out}", "--unbalance", "1.5"], "--unbalance", "[0, 1)"),
+    (["runup", "--out", "{out}", "--unbalance-g-mm", "-1"], "--unbalance-g-mm", "positive"),
+    (["runup", "--out", "{out}", "--balance-grade", "0"], "--balance-grade", "positive"),
+    (["runup", "--out", "{out}", "--balance-grade", "1000"], "--balance-grade", "must be below 1"),
+    (["runup", "--out", "{out}", "--unbalance", "0.1", "--balance-grade", "2.5"], "--balance-grade",
+     "not allowed with"),
+    (["runup", "--out", "{out}", "--unbalance-g-mm", "1", "--rotor-mass-kg", "0"], "--rotor-mass-kg",
+     "positive"),
+    (["runup", "--out", "{out}", "--unbalance", "0.1", "--unbalance-phase-deg", "nan"],
+     "--unbalance-phase-deg", "finite"),
+]  # fmt: skip
 
 
 @pytest.mark.parametrize(

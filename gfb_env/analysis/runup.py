@@ -8,10 +8,15 @@ only bound the memory of one call).  The journal starts at the static equilibriu
 displaced by ``perturbation`` (units of C) so that the whirl has a seed to grow from once the
 equilibrium loses stability (without one, only round-off would seed it).
 
-Extension point (unbalance): the rotor equations have no forcing term yet.  When the forcing module
-of the realism issue provides the unbalance (a 1x force ``m e Omega^2``), :func:`run_up` is where it
-enters (one more argument passed to the integrator); the waterfall then shows the 1x line's response
-and nothing else here changes.
+Unbalance: with ``unbalance`` (:class:`gfb_env.forcing.Unbalance`) the integrator carries the 1x
+forcing ``U (theta'^2 sin theta - theta'' cos theta, ...)`` along the ramp (theta'' = r), so the
+waterfall shows the 1x line's response.  The rotation angle of every sample is known in closed form
+(``theta = Lambda_1 tau + r tau^2 / 2`` on the run-up, continued on the coast-down:
+:attr:`RunUpResult.rotation_angle`), which gives the order-tracked 1x amplitude of each window
+(:func:`envelopes`: least squares of ``c + d k + a cos theta - b sin theta``, the convention of
+:func:`gfb_env.analysis.response.synchronous_components`) and separates the synchronous orbit from the
+(subsynchronous) whirl: with an unbalance the whirl amplitude of a window is the half peak-to-peak of
+xi minus its fitted 1x part.  Without one, nothing changes (bit for bit).
 
 The waterfall is the Hann-windowed amplitude spectrum (:func:`gfb_env.analysis.spectrum.amplitude_spectrum`)
 of the linearly detrended ``xi`` over consecutive windows of ``window`` tau, each labelled by its mean
@@ -28,11 +33,20 @@ import numpy as np
 
 from gfb_env.analysis.spectrum import amplitude_spectrum
 from gfb_env.equilibrium import find_equilibrium
+from gfb_env.forcing import Unbalance
 from gfb_env.integrator import Trajectory, TrapezoidalIntegrator
 from gfb_env.model import GFBModel
 from gfb_env.params import check_positive
 
-__all__ = ["RunUpResult", "Waterfall", "bearing_number_rate", "run_up", "waterfall", "envelopes"]
+__all__ = [
+    "RunUpResult",
+    "Waterfall",
+    "bearing_number_rate",
+    "ramp_rotation_angle",
+    "run_up",
+    "waterfall",
+    "envelopes",
+]
 
 
 def bearing_number_rate(model: GFBModel, acceleration_rpm_s: float) -> float:
@@ -51,6 +65,9 @@ class RunUpResult:
         status: ``done``, ``touchdown`` or ``failed``; message: why it stopped early.
         tau_ramp: duration of one leg in tau.
         steps: accepted integrator steps; wall_time_s: wall time.
+        rotation_angle: theta at each sample (without the unbalance phase), from the ramp in closed form.
+        unbalance: the rotor's unbalance (None: none).
+        final_rotation_angle: theta at the end as the integrator carried it, in [0, 2 pi).
     """
 
     trajectory: Trajectory
@@ -61,6 +78,20 @@ class RunUpResult:
     steps: int
     wall_time_s: float
     touchdown_tau: float | None = None
+    rotation_angle: np.ndarray | None = None
+    unbalance: Unbalance | None = None
+    final_rotation_angle: float = 0.0
+
+
+def ramp_rotation_angle(
+    tau: np.ndarray, bearing_range: tuple[float, float], rate: float, tau_ramp: float
+) -> np.ndarray:
+    """theta(tau) = int Lambda dtau of the run-up (and coast-down) ramp, from theta(0) = 0."""
+    lo, hi = bearing_range
+    t = np.asarray(tau, dtype=float)
+    up = np.minimum(t, tau_ramp)
+    down = np.maximum(t - tau_ramp, 0.0)
+    return lo * up + 0.5 * rate * up * up + hi * down - 0.5 * rate * down * down
 
 
 def run_up(
@@ -74,9 +105,11 @@ def run_up(
     touchdown: float = 0.01,
     chunk: float = 1000.0,
     progress: bool = False,
+    unbalance: Unbalance | None = None,
 ) -> RunUpResult:
     """Integrate ``Lambda`` from ``bearing_range[0]`` to ``[1]`` at ``rate`` per tau (and back with
-    ``coast_down``), recording the rotor every ``record_interval``; stops at touchdown."""
+    ``coast_down``), recording the rotor every ``record_interval``; stops at touchdown.  ``unbalance``:
+    the rotor's unbalance, on from tau = 0 (theta = 0 there)."""
     lo, hi = float(bearing_range[0]), float(bearing_range[1])
     if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
         raise ValueError(f"bearing_range must satisfy 0 < min < max, got {bearing_range!r}")
@@ -85,7 +118,9 @@ def run_up(
     s = find_equilibrium(model, lo)
     L = model.layout
     s = L.with_rotor(s, *(L.rotor(s)[:2] + np.asarray(perturbation, dtype=float)), 0.0, 0.0)
-    integ = TrapezoidalIntegrator(model, s, lo, foil_damping, touchdown_film_thickness=touchdown)
+    integ = TrapezoidalIntegrator(
+        model, s, lo, foil_damping, touchdown_film_thickness=touchdown, unbalance=unbalance
+    )
     parts: list[Trajectory] = []
     legs: list[np.ndarray] = []
     status, message, steps, t_touch = "done", "", 0, None
@@ -101,7 +136,6 @@ def run_up(
             t_end = min(integ.tau + chunk, t_leg0 + tau_ramp)
             lam_end = a + (b - a) * (t_end - t_leg0) / tau_ramp
             t_before = integ.tau
-            # (unbalance enters here once the forcing module exists: see the module docstring)
             res = integ.advance(
                 t_end, bearing_number=lam_end, record_interval=record_interval, raise_on_failure=False
             )
@@ -118,8 +152,9 @@ def run_up(
                     message = f"touchdown (film below {touchdown:g} C) at tau={t_touch:.1f}"
     if bar is not None:
         bar.close()
+    tr = Trajectory.concatenate(parts)
     return RunUpResult(
-        trajectory=Trajectory.concatenate(parts),
+        trajectory=tr,
         leg=np.concatenate(legs),
         status=status,
         message=message,
@@ -127,18 +162,37 @@ def run_up(
         steps=steps,
         wall_time_s=time.perf_counter() - t0,
         touchdown_tau=t_touch,
+        rotation_angle=ramp_rotation_angle(tr.tau, (lo, hi), rate, tau_ramp),
+        unbalance=unbalance,
+        final_rotation_angle=integ.rotation_angle,
     )
+
+
+def _synchronous_fit(theta: np.ndarray, x: np.ndarray) -> tuple[complex, np.ndarray]:
+    """``z = a + i b`` of ``x ~ c + d k + a cos theta - b sin theta`` and the fitted 1x part."""
+    k = np.arange(len(x), dtype=float)
+    cs, sn = np.cos(theta), -np.sin(theta)
+    coef, *_ = np.linalg.lstsq(np.column_stack([np.ones_like(k), k, cs, sn]), x, rcond=None)
+    return complex(coef[2], coef[3]), coef[2] * cs + coef[3] * sn
 
 
 def envelopes(res: RunUpResult, window: float) -> dict[str, np.ndarray]:
     """Per window of ``window`` tau (within one leg): mean tau and Lambda, leg, min/max of xi and eta,
-    max eccentricity, min film thickness."""
+    max eccentricity, min film thickness, the order-tracked 1x amplitudes ``sync_xi``, ``sync_eta``
+    (zero-to-peak) and the ``whirl`` amplitude (half peak-to-peak of xi; with an unbalance, of xi minus
+    its fitted 1x part: the non-synchronous motion)."""
     tr = res.trajectory
     if len(tr) < 2:
         raise ValueError("the run recorded fewer than 2 samples")
     dt = float(tr.tau[1] - tr.tau[0])
     n_win = max(2, int(round(window / dt)))
-    keys = ("tau", "bearing_number", "leg", "xi_min", "xi_max", "eta_min", "eta_max", "eps_max", "hmin")
+    keys = (
+        "tau", "bearing_number", "leg", "xi_min", "xi_max", "eta_min", "eta_max", "eps_max", "hmin",
+        "sync_xi", "sync_eta", "whirl",
+    )  # fmt: skip
+    theta = res.rotation_angle
+    if theta is None:
+        raise ValueError("the run-up result has no rotation angle")
     rows: dict[str, list] = {k: [] for k in keys}
     for leg in np.unique(res.leg):
         idx_leg = np.nonzero(res.leg == leg)[0]
@@ -155,6 +209,13 @@ def envelopes(res: RunUpResult, window: float) -> dict[str, np.ndarray]:
             rows["eta_max"].append(tr.eta[i].max())
             rows["eps_max"].append(np.hypot(tr.xi[i], tr.eta[i]).max())
             rows["hmin"].append(tr.min_film_thickness[i].min())
+            z_xi, x1 = _synchronous_fit(theta[i], tr.xi[i])
+            z_eta, _ = _synchronous_fit(theta[i], tr.eta[i])
+            rows["sync_xi"].append(abs(z_xi))
+            rows["sync_eta"].append(abs(z_eta))
+            # without an unbalance the whirl is the whole motion (unchanged by a fit of round-off)
+            x = tr.xi[i] - x1 if res.unbalance is not None else tr.xi[i]
+            rows["whirl"].append(0.5 * (x.max() - x.min()))
     return {k: np.asarray(v) for k, v in rows.items()}
 
 
@@ -167,6 +228,29 @@ class Waterfall:
     amplitude: np.ndarray
     bearing_number: np.ndarray
     leg: np.ndarray
+
+    def order_amplitude(self, order: float = 1.0) -> np.ndarray:
+        """Per window, the height of the line at ``order`` x the mean speed: the largest bin within
+        two bins of it, refined by the log-quadratic (Gaussian) interpolation over its neighbours
+        (Gasior & Gonzalez; the Hann window's scalloping loss, up to 15 % on a bin, drops to ~1 %)."""
+        dw = float(self.omega[1] - self.omega[0])
+        out = np.zeros(len(self.bearing_number))
+        for j, lam in enumerate(self.bearing_number):
+            c = int(round(order * lam / dw))
+            lo, hi = max(1, c - 2), min(len(self.omega) - 2, c + 2)
+            if hi < lo:
+                continue
+            a = self.amplitude[j]
+            k = lo + int(np.argmax(a[lo : hi + 1]))
+            amp = a[k]
+            if min(a[k - 1], a[k + 1]) > 0:
+                la, lb, lc = np.log(a[k - 1]), np.log(a[k]), np.log(a[k + 1])
+                den = la - 2 * lb + lc
+                if den < 0:
+                    p = 0.5 * (la - lc) / den
+                    amp = float(np.exp(lb - 0.25 * (la - lc) * p))
+            out[j] = amp
+        return out
 
 
 def waterfall(res: RunUpResult, window: float) -> Waterfall:

@@ -15,7 +15,11 @@ The method, for a viscoelastic foil (paper Sect. 3.2-3.4):
    the safe speed, to the safe speed: the target is reported infeasible) and holds.
 4. The schedule is verified by a transient run from the slightly perturbed equilibrium at the start
    speed: ramp, then hold; the largest whirl amplitude in the hold and the smallest film thickness of the
-   whole run are reported.
+   whole run are reported.  With an unbalance (:class:`gfb_env.forcing.Unbalance`, on from the start of
+   the ramp) the rotor also vibrates at 1x; the last window of the hold is then split by least squares
+   into the synchronous orbit (``c + a cos theta - b sin theta`` per coordinate, the convention of
+   :func:`gfb_env.analysis.response.synchronous_components`) and the rest: the whirl amplitude is the rest
+   (does the rotor whirl?), the 1x amplitudes and the total vibration are reported beside it.
 """
 
 from __future__ import annotations
@@ -28,9 +32,11 @@ import numpy as np
 
 from gfb_env.analysis.maps import optimum_from_curve
 from gfb_env.analysis.periodic import ShootingError, fold_bearing_number
+from gfb_env.analysis.response import synchronous_components
 from gfb_env.analysis.stability import StabilityAnalysisError, critical_bearing_number
 from gfb_env.analysis.task_constants import critical_bearing_numbers_on_grid
 from gfb_env.equilibrium import find_equilibrium
+from gfb_env.forcing import Unbalance
 from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel, Structure
 from gfb_env.params import check_positive
@@ -44,10 +50,17 @@ class ScheduleVerification:
 
     Attributes:
         status: the integrator's end status (``done``, ``touchdown`` or ``failed``).
-        max_whirl_amplitude: half the largest peak-to-peak of xi or eta over the hold.
+        max_whirl_amplitude: half the largest peak-to-peak of xi or eta over the last window of the
+            hold; with an unbalance, of xi and eta minus their fitted 1x orbit (the non-synchronous
+            motion: the whirl, or what is left of the start's perturbation).
         min_film_thickness: smallest film thickness over the whole run.
         max_eccentricity: largest eccentricity over the whole run.
         tau: rotor time simulated; steps: integrator steps; wall_time_s: wall time.
+        unbalance: U of the run (0: none).
+        synchronous_xi, synchronous_eta: zero-to-peak 1x amplitudes over the last window (0 without an
+            unbalance).
+        max_vibration_amplitude: half the largest peak-to-peak of xi or eta over the last window, 1x
+            included (equal to ``max_whirl_amplitude`` without an unbalance).
     """
 
     status: str
@@ -57,6 +70,10 @@ class ScheduleVerification:
     tau: float
     steps: int
     wall_time_s: float
+    unbalance: float = 0.0
+    synchronous_xi: float = 0.0
+    synchronous_eta: float = 0.0
+    max_vibration_amplitude: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -218,24 +235,42 @@ def design_run_up_schedule(
 
 
 def verify_schedule(
-    schedule: RunUpSchedule, perturbation: float = 0.01, touchdown: float = 0.01, window: float = 500.0
+    schedule: RunUpSchedule,
+    perturbation: float = 0.01,
+    touchdown: float = 0.01,
+    window: float = 500.0,
+    unbalance: Unbalance | None = None,
 ) -> ScheduleVerification:
     """Run the schedule: from the equilibrium at the start speed displaced by ``perturbation`` C, ramp
     (Lambda linear in tau) at the chosen damping, then hold; the whirl amplitude is half the largest
-    peak-to-peak of xi or eta over the last ``window`` tau of the hold."""
+    peak-to-peak of xi or eta over the last ``window`` tau of the hold.  ``unbalance``: the rotor's
+    unbalance, on from the start (theta = 0); the whirl amplitude is then that of the motion left after
+    removing the fitted 1x orbit (module docstring)."""
+    if unbalance is not None and not isinstance(unbalance, Unbalance):
+        raise ValueError(f"unbalance must be an Unbalance or None, got {type(unbalance).__name__}")
+    window = check_positive("window", window)
     model, sch = schedule.model, schedule
     L = model.layout
     s = find_equilibrium(model, sch.start_bearing_number)
     s = L.with_rotor(s, *(L.rotor(s)[:2] + np.array([perturbation, 0.0])), 0.0, 0.0)
     integ = TrapezoidalIntegrator(
-        model, s, sch.start_bearing_number, sch.foil_damping, touchdown_film_thickness=touchdown
+        model,
+        s,
+        sch.start_bearing_number,
+        sch.foil_damping,
+        touchdown_film_thickness=touchdown,
+        unbalance=unbalance,
     )
+    lam = sch.end_bearing_number
+    # 16 samples a revolution resolve the 1x line (and anything slower) for the fit
+    dt_rec = 2.0 * math.pi / (16.0 * lam) if unbalance is not None else None
+    sync_xi = sync_eta = 0.0
     t0 = time.perf_counter()
     steps, min_h, max_e = 0, math.inf, 0.0
     res = integ.advance(sch.ramp_tau, bearing_number=sch.end_bearing_number, raise_on_failure=False)
     steps += res.steps
     min_h, max_e = min(min_h, res.min_film_thickness), max(max_e, res.max_eccentricity)
-    amp = math.nan
+    amp = vib = math.nan
     if res.status == "done":
         hold_end = sch.ramp_tau + sch.hold_tau
         if sch.hold_tau > window:
@@ -243,10 +278,20 @@ def verify_schedule(
             steps += res.steps
             min_h, max_e = min(min_h, res.min_film_thickness), max(max_e, res.max_eccentricity)
         if res.status == "done":
-            res = integ.advance(hold_end, raise_on_failure=False)
+            tau0, theta0 = integ.tau, integ.rotation_angle
+            res = integ.advance(hold_end, record_interval=dt_rec, raise_on_failure=False)
             steps += res.steps
             min_h, max_e = min(min_h, res.min_film_thickness), max(max_e, res.max_eccentricity)
             amp = 0.5 * max(res.xi_range[1] - res.xi_range[0], res.eta_range[1] - res.eta_range[0])
+            vib = amp
+            if unbalance is not None and res.status == "done":
+                tr = res.trajectory
+                theta = theta0 + lam * (tr.tau - tau0)  # constant speed in the hold
+                orb = synchronous_components(tr.tau, theta, tr.xi, tr.eta)
+                sync_xi, sync_eta = abs(orb.xi), abs(orb.eta)
+                rest_xi = tr.xi - (orb.xi.real * np.cos(theta) - orb.xi.imag * np.sin(theta))
+                rest_eta = tr.eta - (orb.eta.real * np.cos(theta) - orb.eta.imag * np.sin(theta))
+                amp = 0.5 * max(np.ptp(rest_xi), np.ptp(rest_eta))
     return ScheduleVerification(
         status=str(res.status),
         max_whirl_amplitude=float(amp),
@@ -255,4 +300,8 @@ def verify_schedule(
         tau=integ.tau,
         steps=steps,
         wall_time_s=time.perf_counter() - t0,
+        unbalance=0.0 if unbalance is None else unbalance.magnitude,
+        synchronous_xi=float(sync_xi),
+        synchronous_eta=float(sync_eta),
+        max_vibration_amplitude=float(vib),
     )

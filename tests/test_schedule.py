@@ -144,3 +144,17 @@ def test_the_schedule_as_a_policy_succeeds_on_run_up():
     assert agent.ramp == pytest.approx(1.0) and agent.damping == sch.foil_damping
     res = run_episode(env, agent, seed=3)
     assert res.success, res
+
+
+def test_cli_exits_1_when_the_verified_rotor_whirls(tmp_path, capsys):
+    """Inside the hysteresis band (no fold computed, 0.5 % margin) a large unbalance throws the rotor onto
+    the whirl: the schedule is not verified, and the exit code says so."""
+    argv = ["schedule", "--foil-stiffness", "1", "--target-rpm", "36400", "--margin", "0.005"]
+    argv += ["--fold-dampings", "0", "--n-dampings", "5", "--unbalance", "0.15", "--json"]
+    rc = gfb([*argv, "--out", str(tmp_path / "w")])
+    d = json.loads(capsys.readouterr().out)
+    assert rc == 1 and d["verified_stable"] is False and d["verified_status"] == "done"
+    assert d["verified_max_whirl_amplitude_um"] > 20.0  # the developed whirl: ~51 um
+    rc = gfb([*argv[:-3], "--json", "--out", str(tmp_path / "q")])  # the same without unbalance
+    d = json.loads(capsys.readouterr().out)
+    assert rc == 0 and d["verified_stable"] is True

@@ -8,8 +8,9 @@ Stages (each writes into ``--out``):
    ``summary.json`` (the same as ``gfb simulate``).
 4. Linear stability: the critical bearing number Lambda_c of the rigid foil and of the viscoelastic
    foil (K_W = 1) at two dampings (``critical.json``), as ``gfb critical`` computes it.
-5. The control task: one seeded ``gfb_env/RunUp-v0`` episode flown by the map-informed scripted
-   agent, with its path and a rendered frame (``runup_episode.json``, ``runup_frame.png``).
+5. The control task: one seeded ``gfb_env/RunUp-v1`` episode (the instrumented machine: actuator lag,
+   noisy probes, shocks, unbalance) flown by the map-informed scripted agent, with its path and a
+   rendered frame (``runup_episode.json``, ``runup_frame.png``).
 """
 
 from __future__ import annotations
@@ -103,7 +104,7 @@ def runup_stage(out: Path, seed: int = 0) -> dict:
     from gfb_agents.evaluate import run_episode
     from gfb_agents.scripted import make_scripted_agents
 
-    env = gym.make("gfb_env/RunUp-v0", render_mode="rgb_array")
+    env = gym.make("gfb_env/RunUp-v1", render_mode="rgb_array")
     agent = next(a for name, a in make_scripted_agents(env).items() if name.startswith("map_informed"))
     res = run_episode(env, agent, seed=seed, record_path=True)
     frame = env.render()
@@ -128,7 +129,7 @@ def runup_stage(out: Path, seed: int = 0) -> dict:
     }
     (out / "runup_episode.json").write_text(jsonio.dumps(d, indent=2))
     print(
-        f"== RunUp-v0 with {agent.name}: {res.termination_reason} after {res.steps} steps, return "
+        f"== RunUp-v1 with {agent.name}: {res.termination_reason} after {res.steps} steps, return "
         f"{res.episode_return:.1f}, final speed {res.final_speed_rpm:.0f} rpm"
     )
     return {k: v for k, v in d.items() if not k.startswith("path")}

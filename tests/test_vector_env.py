@@ -93,7 +93,7 @@ def test_native_vector_env_is_sync_vector_env_bit_for_bit(env_id):
     native, sync = _pair(env_id)
     rng = np.random.default_rng(1)
     _assert_same(native.reset(seed=7), sync.reset(seed=7))
-    for t in range(8):
+    for _ in range(8):
         a = _actions(rng)
         _assert_same(native.step(a), sync.step(a))
     _assert_same(native.reset(), sync.reset())

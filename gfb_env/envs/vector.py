@@ -144,12 +144,7 @@ class GFBVectorEnv(VectorEnv):
                 raise RuntimeError("reset all envs (no reset_mask) before resetting some")
         infos: dict[str, Any] = {}
         for i in np.flatnonzero(mask):
-            self._observations[i], info = self.envs[i].reset(seed=seeds[i], options=options)
-            infos = self._add_info(infos, info, i)
-        self._terminations[mask] = False
-        self._truncations[mask] = False
-        self._autoreset_envs[mask] = False
-        self._elapsed_steps[mask] = 0
+            infos = self._add_info(infos, self._reset_env(i, seeds[i], options), i)
         self._needs_reset = False
         return self._observations.copy(), infos
 
@@ -169,49 +164,20 @@ class GFBVectorEnv(VectorEnv):
                 )
             to_reset = np.zeros(n, dtype=np.bool_)
         stepped = np.flatnonzero(~to_reset)
-        envs = [self.envs[i] for i in stepped]
         env_infos: list[dict | None] = [None] * n
-
-        # ---- command: the batch's actions sanitised at once (GFBEnv._sanitise, elementwise)
-        clean = np.clip(np.nan_to_num(a, nan=0.0, posinf=1.0, neginf=-1.0), -1.0, 1.0)
-        sanitised = np.any(clean != a, axis=1) | np.any(np.isnan(a), axis=1)
-        commands = []
-        for i, env in zip(stepped, envs, strict=True):
-            env._check_can_step()
-            ai = clean[i].copy()  # the env keeps it (last_action), as the single env keeps its own
-            commands.append((ai, *env._prepare_plant(ai)))
-        # ---- plant
-        results = self._advance_plants(envs, [(c[2], c[3]) for c in commands])
-        # ---- judge and emit
-        raws = []
-        for k, (i, env) in enumerate(zip(stepped, envs, strict=True)):
-            ai, lam0, _, _, kick = commands[k]
-            out, trace = env._plant_outcome(lam0, results[k])
-            env._judge(out, trace, ai, bool(sanitised[i]), kick)
-            raw, env_infos[i] = env._emit_raw()
-            raws.append(raw)
-            self._rewards[i] = env.episode.reward
-            self._terminations[i] = env.episode.done
-        if raws:
-            self._observations[stepped] = self.envs[0]._finish_observation(np.stack(raws))
-        self._elapsed_steps[stepped] += 1
-        self._truncations[stepped] = (
-            self._elapsed_steps[stepped] >= self.max_episode_steps
-            if self.max_episode_steps is not None
-            else False
-        )
+        for i, info in zip(stepped, self._step_envs(a, stepped), strict=True):
+            env_infos[i] = info
         # ---- autoresets
         final: dict[int, dict] = {}
         for i in np.flatnonzero(to_reset):
-            self._observations[i], env_infos[i] = self.envs[i].reset()
+            env_infos[i] = self._reset_env(i)
             self._rewards[i] = 0.0
-            self._terminations[i] = self._truncations[i] = False
-            self._elapsed_steps[i] = 0
         if self.autoreset_mode is AutoresetMode.SAME_STEP:
             for i in np.flatnonzero(self._terminations | self._truncations):
                 final[i] = {"final_obs": self._observations[i].copy(), "final_info": env_infos[i]}
-                self._observations[i], env_infos[i] = self.envs[i].reset()
-                self._elapsed_steps[i] = 0
+                ended = (self._terminations[i], self._truncations[i])
+                env_infos[i] = self._reset_env(i)
+                self._terminations[i], self._truncations[i] = ended  # reported for the step that ended
         infos: dict[str, Any] = {}
         for i in range(n):
             if i in final:
@@ -225,6 +191,49 @@ class GFBVectorEnv(VectorEnv):
             self._truncations.copy(),
             infos,
         )
+
+    def _reset_env(self, i: int, seed: int | None = None, options: dict | None = None) -> dict:
+        """Reset env ``i`` (its observation into the batch, its flags and time limit cleared); its info."""
+        self._observations[i], info = self.envs[i].reset(seed=seed, options=options)
+        self._terminations[i] = self._truncations[i] = self._autoreset_envs[i] = False
+        self._elapsed_steps[i] = 0
+        return info
+
+    def _step_envs(self, actions: np.ndarray, stepped: np.ndarray) -> list[dict]:
+        """One control step of the envs ``stepped`` (indices) with their rows of ``actions`` (float64,
+        ``(num_envs, 2)``): observations, rewards, terminations and time-limit truncations into the
+        batch; returns their infos.  No autoreset (the callers' autoreset semantics differ)."""
+        envs = [self.envs[i] for i in stepped]
+        # ---- command: the batch's actions sanitised at once (GFBEnv._sanitise, elementwise)
+        a = actions
+        clean = np.clip(np.nan_to_num(a, nan=0.0, posinf=1.0, neginf=-1.0), -1.0, 1.0)
+        sanitised = np.any(clean != a, axis=1) | np.any(np.isnan(a), axis=1)
+        commands = []
+        for i, env in zip(stepped, envs, strict=True):
+            env._check_can_step()
+            ai = clean[i].copy()  # the env keeps it (last_action), as the single env keeps its own
+            commands.append((ai, *env._prepare_plant(ai)))
+        # ---- plant
+        results = self._advance_plants(envs, [(c[2], c[3]) for c in commands])
+        # ---- judge and emit
+        raws, infos = [], []
+        for k, (i, env) in enumerate(zip(stepped, envs, strict=True)):
+            ai, lam0, _, _, kick = commands[k]
+            out, trace = env._plant_outcome(lam0, results[k])
+            env._judge(out, trace, ai, bool(sanitised[i]), kick)
+            raw, info = env._emit_raw()
+            raws.append(raw)
+            infos.append(info)
+            self._rewards[i] = env.episode.reward
+            self._terminations[i] = env.episode.done
+        if raws:
+            self._observations[stepped] = self.envs[0]._finish_observation(np.stack(raws))
+        self._elapsed_steps[stepped] += 1
+        if self.max_episode_steps is not None:
+            self._truncations[stepped] = self._elapsed_steps[stepped] >= self.max_episode_steps
+        else:
+            self._truncations[stepped] = False
+        return infos
 
     def _advance_plants(
         self, envs: list[GFBEnv], commands: list[tuple[float, float]]

@@ -3,7 +3,7 @@
     python -m gfb_agents.train --algo {ppo,sac} --env gfb_env/RunUpRandomized-v0 [--timesteps N] [--seed S]
                            [--n-envs K] [--resume CHECKPOINT.zip] [--out DIR] [--hyperparams FILE]
                            [--env-kwargs JSON] [--eval-freq N] [--eval-episodes N]
-                           [--checkpoint-freq N] [--no-progress-bar] [--vec-env {dummy,subproc}]
+                           [--checkpoint-freq N] [--no-progress-bar] [--vec-env {dummy,subproc,native}]
 
 Hyperparameters come from ``agents/hyperparams/<algo>.yml`` in rl-zoo3's layout (top-level keys are env
 ids; besides the algorithm's keyword arguments the zoo's ``n_timesteps``, ``policy``, ``n_envs`` and
@@ -119,7 +119,7 @@ def _split_hyperparams(hp: dict[str, Any]) -> tuple[dict[str, Any], dict[str, An
     return zoo, kwargs
 
 
-VEC_ENVS = ("dummy", "subproc")
+VEC_ENVS = ("dummy", "subproc", "native")
 
 
 def importable_env_id(env_id: str) -> str:
@@ -150,15 +150,29 @@ def make_vec_env_for(
     ``"module:id"`` form (:func:`importable_env_id`), so this works from ``python -c`` and stdin too, and
     one copy is made, reset and stepped here first so that numba compiles (or loads) the kernels once and
     writes its on-disk cache before the workers start: they load the kernels instead of compiling them
-    all at once."""
+    all at once.
+    ``vec_env="native"``: the task's native vector env (``gymnasium.make_vec``'s vector_entry_point,
+    :class:`gfb_env.envs.vector.GFBVectorEnv`) behind SB3's API (:class:`gfb_agents.vec_env.GFBSB3VecEnv`),
+    the same bits as ``"dummy"``, with one ``VecMonitor`` (``native.monitor.csv``) instead of one
+    ``Monitor`` per copy."""
     from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
     import gfb_env.envs  # noqa: F401  (registers the ids)
 
     if vec_env not in VEC_ENVS:
         raise ValueError(f"vec_env must be one of {VEC_ENVS}, got {vec_env!r}")
     env_kwargs = dict(env_kwargs or {})
+    if vec_env == "native":
+        from gfb_agents.vec_env import GFBSB3VecEnv
+
+        native = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point", **env_kwargs)
+        venv = VecMonitor(
+            GFBSB3VecEnv(native.unwrapped),
+            filename=str(Path(monitor_dir) / "native") if monitor_dir else None,
+        )
+        venv.seed(seed)
+        return venv
     if vec_env == "subproc":
         warm = gym.make(env_id, **env_kwargs)
         warm.reset(seed=seed)
@@ -258,7 +272,7 @@ class TrainConfig:
         eval_freq, eval_episodes, checkpoint_freq: evaluation and checkpoint cadence in env steps.
         progress_bar, tensorboard, verbose: output.
         torch_threads: torch CPU threads (1: the env is the bottleneck and cores are shared).
-        vec_env: ``"dummy"`` or ``"subproc"`` for the training envs (:func:`make_vec_env_for`).
+        vec_env: ``"dummy"``, ``"subproc"`` or ``"native"`` for the training envs (:func:`make_vec_env_for`).
     """
 
     algo: str
@@ -584,7 +598,8 @@ def main(argv: list[str] | None = None) -> int:
         "--vec-env",
         choices=VEC_ENVS,
         default="dummy",
-        help="training envs in this process (dummy) or one worker process each (subproc)",
+        help="training envs in this process (dummy), one worker process each (subproc), or the task's "
+        "native vector env (native)",
     )
     a = ap.parse_args(argv)
     set_thread_defaults()  # single-threaded BLAS in the subproc workers (see gfb_env._threads)

@@ -4,10 +4,18 @@ Prints, for each registered task on one core, env steps per second and simulated
 wall-clock second under a seeded random policy, a vector env on two cores (``gymnasium.make_vec``,
 async), and the wall time of one full default RunUp-v0 episode with the scripted ramp policy
 (``RunUpEnv.scripted_action``: full motor rate toward the target at the optimum damping), plus the
-worst case (full speed with the least damping: whirl to touchdown).  The last line is JSON, also
-written with the load average to ``results/bench_env/summary.json``.  Run::
+worst case (full speed with the least damping: whirl to touchdown).
 
-    OMP_NUM_THREADS=1 .venv/bin/python -m gfb_experiments.bench_env [--steps 40] [--out DIR]
+Vector throughput near equilibrium (RunUp-v0, the speed held at the start, D_W = 1): env steps per
+second of one env, Gymnasium's SyncVectorEnv, AsyncVectorEnv (2 worker processes) and the native vector
+env (:class:`gfb_env.envs.vector.GFBVectorEnv`) at N = 2, 8, 16, 32, with their ratios to one env.
+``--profile`` adds a cProfile of single-env steps near equilibrium (the top functions by own time).
+
+The last line is JSON (``single_steps_per_s``, ``async_vector_steps_per_s``, ``native_vector_steps_per_s``
+at N = 16, and everything else), also written with the load average to ``results/bench_env/summary.json``.
+Run::
+
+    OMP_NUM_THREADS=1 .venv/bin/python -m gfb_experiments.bench_env [--steps 40] [--vec-steps 40] [--profile]
 """
 
 from __future__ import annotations
@@ -53,9 +61,86 @@ def _episode(env: gym.Env, policy, seed: int, max_steps: int | None = None) -> d
     }
 
 
+VECTOR_NS = (2, 8, 16, 32)
+
+
+def _equilibrium_rate(envs, steps: int, seed: int) -> float:
+    """Env steps per second of a vector env holding the start (speed action 0, D_W = 1) near equilibrium."""
+    n = envs.num_envs
+    a = np.zeros((n, 2), np.float32)
+    envs.reset(seed=seed)
+    envs.step(a)  # warm-up
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        envs.step(a)
+    return n * steps / (time.perf_counter() - t0)
+
+
+def _single_rate(steps: int, seed: int) -> float:
+    env = gym.make("gfb_env/RunUp-v0")
+    a = np.zeros(2, np.float32)
+    env.reset(seed=seed)
+    env.step(a)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        _, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            env.reset()
+    rate = steps / (time.perf_counter() - t0)
+    env.close()
+    return rate
+
+
+def vector_throughput(steps: int, seed: int) -> dict:
+    """Steps/s near equilibrium: one env, SyncVectorEnv and the native vector env at each N, and
+    AsyncVectorEnv with 2 workers; ratios to one env."""
+    env_id = "gfb_env/RunUp-v0"
+    single = _single_rate(steps, seed)
+    out: dict = {"task": env_id, "single": single, "sync": {}, "native": {}}
+    for n in VECTOR_NS:
+        # the same number of env steps per vector env: steps of the batch = steps / N (at least 3)
+        k = max(3, steps * 4 // n)
+        sync = gym.make_vec(env_id, num_envs=n, vectorization_mode="sync")
+        out["sync"][n] = _equilibrium_rate(sync, k, seed)
+        sync.close()
+        native = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+        out["native"][n] = _equilibrium_rate(native, k, seed)
+        native.close()
+    asyn = gym.make_vec(env_id, num_envs=2, vectorization_mode="async")
+    out["async_2"] = _equilibrium_rate(asyn, steps, seed)
+    asyn.close()
+    return out
+
+
+def profile_single_step(steps: int, seed: int, top: int = 25) -> str:
+    """cProfile of ``steps`` single-env steps near equilibrium: the top functions by own time."""
+    import cProfile
+    import io
+    import pstats
+
+    env = gym.make("gfb_env/RunUp-v0")
+    a = np.zeros(2, np.float32)
+    env.reset(seed=seed)
+    env.step(a)
+    prof = cProfile.Profile()
+    prof.enable()
+    for _ in range(steps):
+        _, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            env.reset()
+    prof.disable()
+    buf = io.StringIO()
+    pstats.Stats(prof, stream=buf).sort_stats("tottime").print_stats(top)
+    return buf.getvalue()
+
+
 def main() -> None:
     ap = OneLineParser(description=__doc__.split("\n")[0])
     ap.add_argument("--steps", type=int, default=40, help="control steps per random-policy run")
+    ap.add_argument(
+        "--vec-steps", type=int, default=40, help="env steps per env at N = 4 in the vector throughput runs"
+    )
+    ap.add_argument("--profile", action="store_true", help="also profile single-env steps near equilibrium")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, default=Path("results/bench_env"), help="output folder")
     args = ap.parse_args()
@@ -124,6 +209,15 @@ def main() -> None:
         }
         envs.close()
 
+    vt = vector_throughput(args.vec_steps, args.seed)
+    results["vector_near_equilibrium"] = vt
+    results["single_steps_per_s"] = vt["single"]
+    results["async_vector_steps_per_s"] = vt["async_2"]
+    results["native_vector_steps_per_s"] = vt["native"][16]
+    results["sync_vector_steps_per_s"] = vt["sync"][16]
+    if args.profile:
+        print(profile_single_step(200, args.seed))
+
     print(
         f"{'task':28} {'policy':18} {'steps':>5} {'wall s':>7} {'steps/s':>8} {'sim s/wall s':>12} "
         f"{'return':>8} {'end':>14}"
@@ -138,6 +232,12 @@ def main() -> None:
             f"{env_id:28} {'random, 2 async':18} {r['env_steps']:5d} {r['wall_s']:7.2f} "
             f"{r['steps_per_s']:8.1f} {r['sim_s_per_wall_s']:12.3f}"
         )
+    print(f"\nnear equilibrium ({vt['task']}), env steps/s (ratio to one env {vt['single']:.0f}/s):")
+    print(f"{'N':>4} {'SyncVectorEnv':>15} {'native':>15}")
+    for n in VECTOR_NS:
+        sy, na = vt["sync"][n], vt["native"][n]
+        print(f"{n:4d} {sy:9.0f} ({sy / vt['single']:4.2f}) {na:9.0f} ({na / vt['single']:4.2f})")
+    print(f"AsyncVectorEnv, 2 workers: {vt['async_2']:.0f} ({vt['async_2'] / vt['single']:.2f})")
     results["load_average_1min_at_end"] = os.getloadavg()[0]
     args.out.mkdir(parents=True, exist_ok=True)
     jsonio.write_json(args.out / "summary.json", results)

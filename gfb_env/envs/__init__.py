@@ -9,6 +9,10 @@ Importing this package registers (idempotently):
   the instrumented machine (:data:`MACHINE_V1`: actuator lag and rate limit, noisy biased probes and
   taps, random base shocks instead of the velocity kick, a residual unbalance; ``docs/machine.md``).
   The v0 ids stay bit-for-bit reproducible.
+
+Every id has a native vector env (:class:`~gfb_env.envs.vector.GFBVectorEnv`, registered as its
+``vector_entry_point``): ``gymnasium.make_vec(id, num_envs=N)`` returns it, bit for bit the same as
+``vectorization_mode="sync"``.
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.envs.base import DEFAULT_GRID, GFBEnv
 from gfb_env.envs.run_up import RunUpEnv
 from gfb_env.envs.run_up_randomized import RunUpRandomizedEnv
+from gfb_env.envs.vector import GFBVectorEnv
 from gfb_env.envs.whirl_recovery import WhirlRecoveryEnv
 from gfb_env.machine import (
     FoilDampingActuator,
@@ -33,6 +38,7 @@ __all__ = [
     "RunUpEnv",
     "RunUpRandomizedEnv",
     "WhirlRecoveryEnv",
+    "GFBVectorEnv",
     "DEFAULT_GRID",
     "NOMINAL_BEARING",
     "ENV_IDS",
@@ -65,6 +71,12 @@ _SPECS = {
     ),
     "gfb_env/WhirlRecovery-v1": ("gfb_env.envs.whirl_recovery:WhirlRecoveryEnv", 200, MACHINE_V1),
 }
+#: the native vector env of each task (``gymnasium.make_vec(id, num_envs=N)``; :mod:`gfb_env.envs.vector`)
+_VECTOR_ENTRY_POINTS = {
+    "gfb_env.envs.run_up:RunUpEnv": "gfb_env.envs.vector:RunUpVectorEnv",
+    "gfb_env.envs.run_up_randomized:RunUpRandomizedEnv": "gfb_env.envs.vector:RunUpRandomizedVectorEnv",
+    "gfb_env.envs.whirl_recovery:WhirlRecoveryEnv": "gfb_env.envs.vector:WhirlRecoveryVectorEnv",
+}
 ENV_IDS = tuple(_SPECS)
 #: the tasks of the published (v0) benchmark table
 V0_IDS = tuple(i for i in ENV_IDS if i.endswith("-v0"))
@@ -74,7 +86,13 @@ def register_envs() -> None:
     """Register the tasks with Gymnasium (no-op for ids already registered)."""
     for env_id, (entry_point, steps, kwargs) in _SPECS.items():
         if env_id not in registry:
-            register(id=env_id, entry_point=entry_point, max_episode_steps=steps, kwargs=dict(kwargs))
+            register(
+                id=env_id,
+                entry_point=entry_point,
+                vector_entry_point=_VECTOR_ENTRY_POINTS[entry_point],
+                max_episode_steps=steps,
+                kwargs=dict(kwargs),
+            )
 
 
 register_envs()

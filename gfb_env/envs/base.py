@@ -58,7 +58,7 @@ from gfb_env.envs.units import (
     ObservationLayout,
 )
 from gfb_env.forcing import HalfSineShock
-from gfb_env.integrator import IntegrationError, TrapezoidalIntegrator
+from gfb_env.integrator import AdvanceResult, IntegrationError, TrapezoidalIntegrator
 from gfb_env.machine import FoilDampingActuator, Motor, PressureTaps, ProximityProbes
 from gfb_env.model import GFBModel, Grid, Structure
 from gfb_env.params import BearingParameters
@@ -283,17 +283,31 @@ class GFBEnv(gym.Env):
         return options
 
     def step(self, action: Any) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict]:
+        self._check_can_step()
+        a, sanitised = self._sanitise(action)
+        lam0, bearing_number, foil_damping, kick = self._prepare_plant(a)
+        res = self._run_integrator(bearing_number, foil_damping)
+        out, trace = self._plant_outcome(lam0, res)
+        self._judge(out, trace, a, sanitised, kick)
+        obs, info = self._emit()
+        return obs, self._ep.reward, self._ep.done, False, info
+
+    # The stages of :meth:`step`, also called one at a time over a batch of envs by
+    # :class:`~gfb_env.envs.vector.GFBVectorEnv` (each env's random draws stay in the same order).
+    def _check_can_step(self) -> None:
         if self._integ is None or self._ep is None:
             raise RuntimeError("call reset() before step()")
         if self._ep.done:
             raise RuntimeError("the episode has ended; call reset()")
-        a, sanitised = self._sanitise(action)
+
+    def _prepare_plant(self, a: np.ndarray) -> tuple[float, float, float, bool]:
+        """Command, kick and shocks of one step: Lambda at the start, Lambda and D_W commanded for the
+        end of the step, and whether a kick was applied (the integrator is then ready to advance)."""
         bearing_number, foil_damping = self._command(a)
         kick = self._maybe_kick()
-        out, trace = self._advance_plant(bearing_number, foil_damping)
-        self._judge(out, trace, a, sanitised, kick)
-        obs, info = self._emit()
-        return obs, self._ep.reward, self._ep.done, False, info
+        lam0 = self._integ.bearing_number
+        self._schedule_shocks()
+        return lam0, bearing_number, foil_damping, kick
 
     # ---- command ------------------------------------------------------------------------------
     def _sanitise(self, action: Any) -> tuple[np.ndarray, bool]:
@@ -336,13 +350,16 @@ class GFBEnv(gym.Env):
 
     def _advance_plant(self, bearing_number: float, foil_damping: float) -> tuple[StepOutcome, PlantTrace]:
         """Integrate one control interval with Lambda and D_W ramping to the commanded values."""
-        integ, ep = self._integ, self._ep
-        lam0 = integ.bearing_number
-        touchdown = failure = False
-        steps = 0
+        lam0 = self._integ.bearing_number
         self._schedule_shocks()
+        return self._plant_outcome(lam0, self._run_integrator(bearing_number, foil_damping))
+
+    def _run_integrator(self, bearing_number: float, foil_damping: float) -> AdvanceResult | Exception:
+        """The integrator over one control interval (the only compiled work of a step): its result, or
+        the numerical failure it raised (judged by :meth:`_plant_outcome`)."""
+        integ = self._integ
         try:
-            res = integ.advance(
+            return integ.advance(
                 integ.tau + self.control_interval,
                 bearing_number,
                 foil_damping,
@@ -350,6 +367,17 @@ class GFBEnv(gym.Env):
                 record_indices=self._probe_idx,
                 raise_on_failure=False,
             )
+        except NUMERICAL_FAILURES as exc:
+            return exc
+
+    def _plant_outcome(self, lam0: float, res: AdvanceResult | Exception) -> tuple[StepOutcome, PlantTrace]:
+        """What the plant did in the step (``lam0``: Lambda at its start) from the integrator's result."""
+        integ, ep = self._integ, self._ep
+        touchdown = failure = False
+        steps = 0
+        try:
+            if isinstance(res, Exception):
+                raise res
             touchdown = res.status == "touchdown"
             failure = res.status in ("failed", "max_steps")
             steps = res.steps
@@ -412,12 +440,26 @@ class GFBEnv(gym.Env):
 
     # ---- emit ---------------------------------------------------------------------------------
     def _emit(self) -> tuple[np.ndarray, dict]:
-        obs, info = self._observation(), self._info()
+        raw, info = self._emit_raw()
+        return self._finish_observation(raw), info
+
+    def _emit_raw(self) -> tuple[np.ndarray, dict]:
+        """The unclipped float64 observation (:meth:`_raw_observation`) and the info."""
+        raw, info = self._raw_observation(), self._info()
         if self.render_mode == "human":
             self.render()
-        return obs, info
+        return raw, info
 
     def _observation(self) -> np.ndarray:
+        return self._finish_observation(self._raw_observation())
+
+    def _finish_observation(self, raw: np.ndarray) -> np.ndarray:
+        """NaN/inf -> 0, clipped to the observation space, float32: elementwise, so the vector env
+        finishes a whole batch ``(n_envs, size)`` in one call with the same bits."""
+        obs = np.nan_to_num(raw, nan=0.0, posinf=0.0, neginf=0.0)
+        return np.clip(obs, self.observation_space.low, self.observation_space.high).astype(np.float32)
+
+    def _raw_observation(self) -> np.ndarray:
         ep, s = self._ep, self._integ.state
         xi, eta, xi_dot, eta_dot = ep.model.layout.rotor(s)
         n = N_ROTOR_OBS + self.n_pressure_probes
@@ -437,8 +479,7 @@ class GFBEnv(gym.Env):
         extra = self._extra_observation()
         if extra is not None:
             obs = np.concatenate([obs, extra])
-        obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
-        return np.clip(obs, self.observation_space.low, self.observation_space.high).astype(np.float32)
+        return obs
 
     def _add_sensor_errors(self, obs: np.ndarray, xi: float, eta: float) -> None:
         """Add what the probes and taps add to the truth (nothing, and no draw, for ideal sensors).

@@ -1,0 +1,330 @@
+"""A native Gymnasium vector environment of the GFB tasks (issue 13, first step).
+
+``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)`` (or no
+``vectorization_mode``: the registered ``vector_entry_point`` is then Gymnasium's default) returns a
+:class:`GFBVectorEnv` of ``N`` copies of the task.  It holds ``N`` plain (unwrapped) task envs and runs
+one control step as the single env's stages over the whole batch:
+
+1. *command*: the actions are sanitised for all envs in one vectorised NumPy call, then each env's
+   motor, actuator, kick and shocks (each env's random draws stay in their own order);
+2. *plant*: :meth:`GFBVectorEnv._advance_plants`, the integrator of every stepped env over the control
+   interval -- today one env after the other; the one place a compiled, parallel batch integrator replaces;
+3. *judge*: each env's outcome, stability, reward and termination, plus the time limit over the batch;
+4. *emit*: each env's float64 observation and info; NaN clean-up, clipping and the cast to float32 are
+   done for the whole batch at once (elementwise, so bit for bit the single env's).
+
+Semantics: identical, bit for bit, to ``gymnasium.vector.SyncVectorEnv`` over ``gymnasium.make(id)`` (the
+task env in ``TimeLimit``) with the same seeds: observations, rewards, terminations, truncations and infos
+(Gymnasium's vector info format, each key with its ``_key`` mask).  ``reset(seed=s)`` seeds env ``i``
+with ``s + i`` (a list seeds each env); ``options["reset_mask"]`` resets only some envs.
+
+Autoreset (``metadata["autoreset_mode"]``, Gymnasium 1.x, https://farama.org/Vector-Autoreset-Mode):
+
+* ``AutoresetMode.NEXT_STEP`` (default, as ``SyncVectorEnv``): an env that terminated or was truncated
+  in step ``t`` is reset (unseeded: its generator continues) by step ``t + 1``, whose action for it is
+  ignored; that step returns its reset observation and info with reward 0 and neither flag set.
+* ``AutoresetMode.SAME_STEP``: the env is reset in the step that ended it; the step returns the reset
+  observation and info, the last ones under ``infos["final_obs"]`` and ``infos["final_info"]``.
+* ``AutoresetMode.DISABLED``: no reset; stepping an ended env raises, reset it with ``reset_mask``.
+
+:meth:`GFBVectorEnv.get_state` / :meth:`GFBVectorEnv.set_state` snapshot the whole batch (every env's
+exact snapshot, the time limit counters and the autoreset flags).
+"""
+
+from __future__ import annotations
+
+from copy import deepcopy
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from gfb_env.envs.base import GFBEnv
+from gfb_env.envs.run_up import RunUpEnv
+from gfb_env.envs.run_up_randomized import RunUpRandomizedEnv
+from gfb_env.envs.whirl_recovery import WhirlRecoveryEnv
+from gfb_env.integrator import AdvanceResult
+
+__all__ = ["GFBVectorEnv", "RunUpVectorEnv", "RunUpRandomizedVectorEnv", "WhirlRecoveryVectorEnv"]
+
+
+class GFBVectorEnv(VectorEnv):
+    """``num_envs`` copies of one GFB task stepped as a batch (see the module docstring).
+
+    Args:
+        num_envs: number of envs (>= 1).
+        env_class: the task (a :class:`~gfb_env.envs.base.GFBEnv` subclass; the task subclasses below
+            fix it).
+        max_episode_steps: truncation after this many steps of an episode (Gymnasium's ``TimeLimit``;
+            ``make_vec`` passes the registered value); None: no time limit.
+        autoreset_mode: an :class:`~gymnasium.vector.AutoresetMode` or its value.
+        render_mode: ``None`` or ``"rgb_array"`` (``render()`` returns one frame per env).
+        **kwargs: the task's keyword arguments (:class:`~gfb_env.envs.config.EnvConfig`), the same for
+            every env.
+    """
+
+    #: the task of the subclasses registered as ``vector_entry_point``
+    env_class: ClassVar[type[GFBEnv] | None] = None
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        *,
+        env_class: type[GFBEnv] | None = None,
+        max_episode_steps: int | None = None,
+        autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+        render_mode: str | None = None,
+        **kwargs: Any,
+    ) -> None:
+        super().__init__()
+        if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        if max_episode_steps is not None and (
+            isinstance(max_episode_steps, bool)
+            or not isinstance(max_episode_steps, int | np.integer)
+            or max_episode_steps < 1
+        ):
+            raise ValueError(
+                f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}"
+            )
+        try:
+            self.autoreset_mode = AutoresetMode(autoreset_mode)
+        except ValueError:
+            modes = [m.value for m in AutoresetMode]
+            raise ValueError(f"autoreset_mode must be one of {modes}, got {autoreset_mode!r}") from None
+        cls = env_class if env_class is not None else self.env_class
+        if cls is None or not (isinstance(cls, type) and issubclass(cls, GFBEnv)):
+            raise ValueError(f"env_class must be a GFBEnv subclass, got {cls!r}")
+        self.num_envs = int(num_envs)
+        self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
+        #: the task envs, unwrapped (the time limit and the order checks are done here)
+        self.envs: list[GFBEnv] = [
+            cls(render_mode=render_mode, **deepcopy(kwargs)) for _ in range(self.num_envs)
+        ]
+        first = self.envs[0]
+        self.metadata = {**first.metadata, "autoreset_mode": self.autoreset_mode}
+        self.render_mode = render_mode
+        self.single_observation_space = first.observation_space
+        self.single_action_space = first.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        n = self.num_envs
+        self._observations = np.zeros(self.observation_space.shape, dtype=self.observation_space.dtype)
+        self._rewards = np.zeros(n, dtype=np.float64)
+        self._terminations = np.zeros(n, dtype=np.bool_)
+        self._truncations = np.zeros(n, dtype=np.bool_)
+        self._autoreset_envs = np.zeros(n, dtype=np.bool_)
+        self._elapsed_steps = np.zeros(n, dtype=np.int64)
+        self._needs_reset = True
+
+    # ------------------------------------------------------------------------------------------
+    def reset(
+        self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset the envs (all, or those of ``options["reset_mask"]``); env ``i`` gets ``seed + i``."""
+        n = self.num_envs
+        if seed is None:
+            seeds: list[int | None] = [None] * n
+        elif isinstance(seed, int | np.integer) and not isinstance(seed, bool):
+            seeds = [int(seed) + i for i in range(n)]
+        else:
+            seeds = list(seed)
+        if len(seeds) != n:
+            raise ValueError(f"seed: a list of seeds must have length num_envs={n}, got {len(seeds)}")
+        options = dict(options) if options is not None else None
+        mask = np.ones(n, dtype=np.bool_)
+        if options is not None and "reset_mask" in options:
+            mask = options.pop("reset_mask")
+            if not isinstance(mask, np.ndarray) or mask.shape != (n,) or mask.dtype != np.bool_:
+                raise ValueError(f"options['reset_mask'] must be a bool numpy array of shape ({n},)")
+            if not np.any(mask):
+                raise ValueError("options['reset_mask'] must contain at least one True")
+            if self._needs_reset and not np.all(mask):
+                raise RuntimeError("reset all envs (no reset_mask) before resetting some")
+        infos: dict[str, Any] = {}
+        for i in np.flatnonzero(mask):
+            infos = self._add_info(infos, self._reset_env(i, seeds[i], options), i)
+        self._needs_reset = False
+        return self._observations.copy(), infos
+
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        if self._needs_reset:
+            raise RuntimeError("call reset() before step()")
+        n = self.num_envs
+        a = np.asarray(actions, dtype=np.float64)
+        if a.shape != (n, 2):
+            raise ValueError(f"actions must have shape ({n}, 2), got {np.shape(actions)}")
+        if self.autoreset_mode is AutoresetMode.NEXT_STEP:
+            to_reset = self._autoreset_envs.copy()
+        else:
+            if self.autoreset_mode is AutoresetMode.DISABLED and np.any(self._autoreset_envs):
+                raise RuntimeError(
+                    "autoreset is disabled: reset the ended envs with reset(options={'reset_mask': ...})"
+                )
+            to_reset = np.zeros(n, dtype=np.bool_)
+        stepped = np.flatnonzero(~to_reset)
+        env_infos: list[dict | None] = [None] * n
+        for i, info in zip(stepped, self._step_envs(a, stepped), strict=True):
+            env_infos[i] = info
+        # ---- autoresets
+        final: dict[int, dict] = {}
+        for i in np.flatnonzero(to_reset):
+            env_infos[i] = self._reset_env(i)
+            self._rewards[i] = 0.0
+        if self.autoreset_mode is AutoresetMode.SAME_STEP:
+            for i in np.flatnonzero(self._terminations | self._truncations):
+                final[i] = {"final_obs": self._observations[i].copy(), "final_info": env_infos[i]}
+                ended = (self._terminations[i], self._truncations[i])
+                env_infos[i] = self._reset_env(i)
+                self._terminations[i], self._truncations[i] = ended  # reported for the step that ended
+        infos: dict[str, Any] = {}
+        for i in range(n):
+            if i in final:
+                infos = self._add_info(infos, final[i], i)
+            infos = self._add_info(infos, env_infos[i], i)
+        self._autoreset_envs = self._terminations | self._truncations
+        return (
+            self._observations.copy(),
+            self._rewards.copy(),
+            self._terminations.copy(),
+            self._truncations.copy(),
+            infos,
+        )
+
+    def _reset_env(self, i: int, seed: int | None = None, options: dict | None = None) -> dict:
+        """Reset env ``i`` (its observation into the batch, its flags and time limit cleared); its info."""
+        self._observations[i], info = self.envs[i].reset(seed=seed, options=options)
+        self._terminations[i] = self._truncations[i] = self._autoreset_envs[i] = False
+        self._elapsed_steps[i] = 0
+        return info
+
+    def _step_envs(self, actions: np.ndarray, stepped: np.ndarray) -> list[dict]:
+        """One control step of the envs ``stepped`` (indices) with their rows of ``actions`` (float64,
+        ``(num_envs, 2)``): observations, rewards, terminations and time-limit truncations into the
+        batch; returns their infos.  No autoreset (the callers' autoreset semantics differ)."""
+        envs = [self.envs[i] for i in stepped]
+        # ---- command: the batch's actions sanitised at once (GFBEnv._sanitise, elementwise)
+        a = actions
+        clean = np.clip(np.nan_to_num(a, nan=0.0, posinf=1.0, neginf=-1.0), -1.0, 1.0)
+        sanitised = np.any(clean != a, axis=1) | np.any(np.isnan(a), axis=1)
+        commands = []
+        for i, env in zip(stepped, envs, strict=True):
+            env._check_can_step()
+            ai = clean[i].copy()  # the env keeps it (last_action), as the single env keeps its own
+            commands.append((ai, *env._prepare_plant(ai)))
+        # ---- plant
+        results = self._advance_plants(envs, [(c[2], c[3]) for c in commands])
+        # ---- judge and emit
+        raws, infos = [], []
+        for k, (i, env) in enumerate(zip(stepped, envs, strict=True)):
+            ai, lam0, _, _, kick = commands[k]
+            out, trace = env._plant_outcome(lam0, results[k])
+            env._judge(out, trace, ai, bool(sanitised[i]), kick)
+            raw, info = env._emit_raw()
+            raws.append(raw)
+            infos.append(info)
+            self._rewards[i] = env.episode.reward
+            self._terminations[i] = env.episode.done
+        if raws:
+            self._observations[stepped] = self.envs[0]._finish_observation(np.stack(raws))
+        self._elapsed_steps[stepped] += 1
+        if self.max_episode_steps is not None:
+            self._truncations[stepped] = self._elapsed_steps[stepped] >= self.max_episode_steps
+        else:
+            self._truncations[stepped] = False
+        return infos
+
+    def _advance_plants(
+        self, envs: list[GFBEnv], commands: list[tuple[float, float]]
+    ) -> list[AdvanceResult | Exception]:
+        """The plant stage: every stepped env's integrator over one control interval toward its commanded
+        (Lambda, D_W).  One env after the other for now; a compiled batch integrator replaces this loop
+        (each result as :meth:`GFBEnv._run_integrator` returns it: an ``AdvanceResult`` or the numerical
+        failure raised)."""
+        return [env._run_integrator(lam, dw) for env, (lam, dw) in zip(envs, commands, strict=True)]
+
+    # ------------------------------------------------------------------------------------------
+    def get_state(self) -> dict:
+        """Exact snapshot of the whole batch (every env's :meth:`GFBEnv.get_state`, the time limit
+        counters, the step's flags and the autoreset flags)."""
+        if self._needs_reset:
+            raise RuntimeError("call reset() first")
+        return {
+            "envs": [env.get_state() for env in self.envs],
+            "elapsed_steps": self._elapsed_steps.copy(),
+            "observations": self._observations.copy(),
+            "rewards": self._rewards.copy(),
+            "terminations": self._terminations.copy(),
+            "truncations": self._truncations.copy(),
+            "autoreset_envs": self._autoreset_envs.copy(),
+        }
+
+    def set_state(self, snapshot: dict) -> None:
+        """Restore a :meth:`get_state` snapshot; the continuation is bit-for-bit identical."""
+        if len(snapshot["envs"]) != self.num_envs:
+            raise ValueError(f"snapshot has {len(snapshot['envs'])} envs, this vector env {self.num_envs}")
+        for env, s in zip(self.envs, snapshot["envs"], strict=True):
+            env.set_state(s)
+        self._elapsed_steps = snapshot["elapsed_steps"].copy()
+        self._observations = snapshot["observations"].copy()
+        self._rewards = snapshot["rewards"].copy()
+        self._terminations = snapshot["terminations"].copy()
+        self._truncations = snapshot["truncations"].copy()
+        self._autoreset_envs = snapshot["autoreset_envs"].copy()
+        self._needs_reset = False
+
+    # ------------------------------------------------------------------------------------------
+    @property
+    def np_random_seed(self) -> tuple[int | None, ...]:
+        """Each env's ``np_random_seed``."""
+        return tuple(env.np_random_seed for env in self.envs)
+
+    @property
+    def np_random(self) -> tuple[np.random.Generator, ...]:
+        """Each env's generator."""
+        return tuple(env.np_random for env in self.envs)
+
+    def render(self) -> tuple[Any, ...]:
+        return tuple(env.render() for env in self.envs)
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """Call method ``name`` of every env (or read the attribute when not callable)."""
+        out = []
+        for env in self.envs:
+            f = getattr(env, name)
+            out.append(f(*args, **kwargs) if callable(f) else f)
+        return tuple(out)
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        return tuple(getattr(env, name) for env in self.envs)
+
+    def set_attr(self, name: str, values: Any) -> None:
+        if not isinstance(values, list | tuple):
+            values = [values] * self.num_envs
+        if len(values) != self.num_envs:
+            raise ValueError(f"set_attr: {len(values)} values for {self.num_envs} envs")
+        for env, v in zip(self.envs, values, strict=True):
+            setattr(env, name, v)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        for env in self.envs:
+            env.close()
+
+
+class RunUpVectorEnv(GFBVectorEnv):
+    """``gfb_env/RunUp-v*`` as a :class:`GFBVectorEnv`."""
+
+    env_class = RunUpEnv
+
+
+class RunUpRandomizedVectorEnv(GFBVectorEnv):
+    """``gfb_env/RunUpRandomized-v*`` as a :class:`GFBVectorEnv`."""
+
+    env_class = RunUpRandomizedEnv
+
+
+class WhirlRecoveryVectorEnv(GFBVectorEnv):
+    """``gfb_env/WhirlRecovery-v*`` as a :class:`GFBVectorEnv`."""
+
+    env_class = WhirlRecoveryEnv

@@ -1,0 +1,233 @@
+"""The native vector env (issue 13): bit for bit Gymnasium's SyncVectorEnv of the same id and seeds over
+whole episodes (resets, autoresets, kicks, shocks, randomised bearings, sanitised actions, solver
+failures), its autoreset modes, Gymnasium's vector conventions and batch snapshots."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode, SyncVectorEnv
+
+import gfb_env.envs  # noqa: F401  (registers the ids)
+from gfb_env.envs import ENV_IDS, GFBVectorEnv
+from gfb_env.envs.episode import TerminationReason
+from gfb_env.integrator import IntegrationError
+
+FAST = {"control_interval": 20.0}
+N = 3
+
+
+def _kwargs(env_id: str) -> dict:
+    """Short episodes with the task version's random disturbances made frequent, and noisy probes."""
+    dist = (
+        {"disturbance_probability": 0.5}
+        if env_id.endswith("-v0")
+        else {"shock_arrivals": {"rate_per_s": 20.0, "peak_g_range": (1.0, 5.0)}}
+    )
+    return {**FAST, **dist, "observation_noise": 0.01, "max_episode_steps": 3}
+
+
+def _pair(env_id: str, mode: AutoresetMode = AutoresetMode.NEXT_STEP, n: int = N, **kw):
+    kw = {**_kwargs(env_id), **kw}
+    native = gym.make_vec(
+        env_id, num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode=mode, **kw
+    )
+    sync = gym.make_vec(
+        env_id, num_envs=n, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode}, **kw
+    )
+    return native, sync
+
+
+def _same_value(x, y) -> bool:
+    if isinstance(x, dict):
+        return isinstance(y, dict) and x.keys() == y.keys() and all(_same_value(x[k], y[k]) for k in x)
+    if isinstance(x, np.ndarray):
+        if not (isinstance(y, np.ndarray) and x.dtype == y.dtype and x.shape == y.shape):
+            return False
+        if x.dtype == object:
+            return all(_same_value(p, q) for p, q in zip(x.ravel(), y.ravel(), strict=True))
+        return np.array_equal(x, y, equal_nan=x.dtype.kind in "fc")
+    if isinstance(x, tuple):
+        return isinstance(y, tuple) and len(x) == len(y) and all(_same_value(p, q) for p, q in zip(x, y))
+    if isinstance(x, float) and np.isnan(x):
+        return isinstance(y, float) and np.isnan(y)
+    return type(x) is type(y) and x == y
+
+
+def _assert_same(a: tuple, b: tuple) -> None:
+    """Two (obs, reward, terminated, truncated, infos) or (obs, infos) results, bit for bit."""
+    assert len(a) == len(b)
+    for x, y in zip(a[:-1], b[:-1], strict=True):
+        assert x.dtype == y.dtype and x.shape == y.shape and np.array_equal(x, y)
+    ia, ib = a[-1], b[-1]
+    assert ia.keys() == ib.keys()
+    bad = [k for k in ia if not _same_value(ia[k], ib[k])]
+    assert not bad, f"infos differ in {bad}"
+
+
+def _actions(rng: np.random.Generator, n: int = N) -> np.ndarray:
+    a = rng.uniform(-1.2, 1.2, (n, 2)).astype(np.float32)
+    if rng.random() < 0.3:  # the single env's sanitising: NaN -> 0, inf and out of range clipped
+        a[rng.integers(n), rng.integers(2)] = rng.choice([np.nan, np.inf, -np.inf])
+    return a
+
+
+def test_make_vec_returns_the_native_vector_env_for_every_task():
+    for env_id in ENV_IDS:
+        envs = gym.make_vec(env_id, num_envs=2, **FAST)  # no mode: the registered vector_entry_point
+        assert isinstance(envs, GFBVectorEnv) and envs.num_envs == 2
+        assert envs.metadata["autoreset_mode"] is AutoresetMode.NEXT_STEP
+        assert envs.spec.id == env_id and envs.max_episode_steps == gym.spec(env_id).max_episode_steps
+        single = gym.make(env_id, **FAST)
+        assert envs.single_observation_space == single.observation_space
+        assert envs.single_action_space == single.action_space
+        assert envs.observation_space.shape == (2, *single.observation_space.shape)
+        envs.close()
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_native_vector_env_is_sync_vector_env_bit_for_bit(env_id):
+    """Whole episodes with autoresets (time limit 3), disturbances, noisy sensors, bad actions, a seeded
+    and an unseeded reset, and a partial reset (reset_mask)."""
+    native, sync = _pair(env_id)
+    rng = np.random.default_rng(1)
+    _assert_same(native.reset(seed=7), sync.reset(seed=7))
+    for _ in range(8):
+        a = _actions(rng)
+        _assert_same(native.step(a), sync.step(a))
+    _assert_same(native.reset(), sync.reset())
+    for _ in range(2):
+        a = _actions(rng)
+        _assert_same(native.step(a), sync.step(a))
+    mask = np.array([True, False, True])
+    _assert_same(
+        native.reset(seed=[3, None, 4], options={"reset_mask": mask}),
+        sync.reset(seed=[3, None, 4], options={"reset_mask": mask.copy()}),
+    )
+    for _ in range(4):
+        a = _actions(rng)
+        _assert_same(native.step(a), sync.step(a))
+    native.close()
+    sync.close()
+
+
+@pytest.mark.parametrize("env_id", ["gfb_env/WhirlRecovery-v0", "gfb_env/RunUpRandomized-v1"])
+def test_same_step_autoreset_matches_sync_vector_env(env_id):
+    native, sync = _pair(env_id, AutoresetMode.SAME_STEP)
+    rng = np.random.default_rng(2)
+    _assert_same(native.reset(seed=0), sync.reset(seed=0))
+    for t in range(7):
+        a = _actions(rng)
+        res = native.step(a)
+        _assert_same(res, sync.step(a))
+        if t == 2:  # every env ended by the time limit: final_obs/final_info, the reset observation
+            assert res[3].all() and res[4]["_final_obs"].all()
+            assert all(fo.shape == native.single_observation_space.shape for fo in res[4]["final_obs"])
+            assert (res[4]["step"] == 0).all() and (res[4]["final_info"]["step"] == 3).all()
+
+
+def test_disabled_autoreset_refuses_to_step_an_ended_env():
+    native, sync = _pair("gfb_env/RunUp-v0", AutoresetMode.DISABLED, max_episode_steps=1)
+    _assert_same(native.reset(seed=0), sync.reset(seed=0))
+    a = np.zeros((N, 2), np.float32)
+    _assert_same(native.step(a), sync.step(a))
+    with pytest.raises(RuntimeError, match="autoreset is disabled"):
+        native.step(a)
+    mask = np.ones(N, dtype=bool)
+    _assert_same(native.reset(options={"reset_mask": mask}), sync.reset(options={"reset_mask": mask}))
+    _assert_same(native.step(a), sync.step(a))
+
+
+@pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v0", "gfb_env/WhirlRecovery-v1"])
+def test_a_solver_failure_in_one_env_is_handled_like_the_single_env(env_id, monkeypatch):
+    native, sync = _pair(env_id, max_episode_steps=10)
+    _assert_same(native.reset(seed=4), sync.reset(seed=4))
+
+    def fail(*a, **k):
+        raise IntegrationError("step size fell below min_step")
+
+    monkeypatch.setattr(native.envs[1]._integ, "advance", fail)
+    monkeypatch.setattr(sync.envs[1].unwrapped._integ, "advance", fail)
+    a = np.full((N, 2), 0.5, np.float32)
+    res = native.step(a)
+    _assert_same(res, sync.step(a))
+    assert list(res[2]) == [False, True, False]
+    assert res[4]["termination_reason"][1] is TerminationReason.SOLVER_FAILURE
+    assert np.all(np.isfinite(res[0])) and np.all(np.isfinite(res[1]))
+    # next step: env 1 is autoreset (its action ignored), the others continue
+    res = native.step(a)
+    _assert_same(res, sync.step(a))
+    assert res[4]["step"].tolist() == [2, 0, 2] and res[1][1] == 0.0
+
+
+def test_a_programming_error_in_the_plant_propagates(monkeypatch):
+    native = gym.make_vec("gfb_env/RunUp-v0", num_envs=2, **FAST)
+    native.reset(seed=0)
+
+    def bug(*a, **k):
+        raise TypeError("a programming error")
+
+    monkeypatch.setattr(native.envs[0]._integ, "advance", bug)
+    with pytest.raises(TypeError, match="programming error"):
+        native.step(np.zeros((2, 2), np.float32))
+
+
+@pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v0", "gfb_env/RunUpRandomized-v1"])
+def test_batch_snapshot_restores_bit_for_bit(env_id):
+    native = gym.make_vec(env_id, num_envs=N, **_kwargs(env_id))
+    rng = np.random.default_rng(5)
+    native.reset(seed=9)
+    for _ in range(2):
+        native.step(_actions(rng))
+    snap = native.get_state()
+    actions = [_actions(rng) for _ in range(4)]  # through the time limit: autoresets included
+    first = [native.step(a) for a in actions]
+    native.set_state(snap)
+    for a, r in zip(actions, first, strict=True):
+        _assert_same(native.step(a), r)
+    # into a fresh vector env of the same configuration, too
+    other = gym.make_vec(env_id, num_envs=N, **_kwargs(env_id))
+    other.set_state(snap)
+    for a, r in zip(actions, first, strict=True):
+        _assert_same(other.step(a), r)
+
+
+def test_vector_env_conventions():
+    """What Gymnasium's vector API promises: spaces, dtypes, info masks, seeding, refusals, wrappers."""
+    envs = gym.make_vec("gfb_env/WhirlRecovery-v1", num_envs=2, **FAST)
+    with pytest.raises(RuntimeError, match="reset"):
+        envs.step(np.zeros((2, 2), np.float32))
+    obs, infos = envs.reset(seed=3)
+    assert envs.observation_space.contains(obs)
+    assert envs.np_random_seed == (3, 4)
+    envs.action_space.seed(0)
+    obs, r, term, trunc, infos = envs.step(envs.action_space.sample())
+    assert envs.observation_space.contains(obs)
+    assert r.dtype == np.float64 and term.dtype == trunc.dtype == np.bool_ and r.shape == (2,)
+    for k, v in infos.items():
+        if not k.startswith("_"):
+            assert infos[f"_{k}"].dtype == np.bool_ and infos[f"_{k}"].all() and len(v) == 2
+    assert envs.get_attr("control_interval") == (20.0, 20.0)
+    with pytest.raises(ValueError, match="actions must have shape"):
+        envs.step(np.zeros(2))
+    with pytest.raises(ValueError, match="num_envs"):
+        gym.make_vec("gfb_env/RunUp-v0", num_envs=0)
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        gym.make_vec("gfb_env/RunUp-v0", num_envs=1, autoreset_mode="sometimes")
+    with pytest.raises(ValueError, match="control_interval"):
+        gym.make_vec("gfb_env/RunUp-v0", num_envs=1, control_interval=-1.0)
+    # Gymnasium's vector wrappers work over it
+    stats = gym.wrappers.vector.RecordEpisodeStatistics(
+        gym.make_vec("gfb_env/RunUp-v0", num_envs=2, max_episode_steps=2, **FAST)
+    )
+    stats.reset(seed=0)
+    for _ in range(2):
+        _, _, _, trunc, infos = stats.step(np.zeros((2, 2), np.float32))
+    assert trunc.all() and infos["_episode"].all() and (infos["episode"]["l"] == 2).all()
+
+
+def test_sync_vector_env_is_the_reference():
+    # the reference of the comparisons is Gymnasium's own SyncVectorEnv, not the native env again
+    _, sync = _pair("gfb_env/RunUp-v0")
+    assert type(sync) is SyncVectorEnv

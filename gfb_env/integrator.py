@@ -629,10 +629,14 @@ class IntegratorStatistics:
         return cls(*(int(v) for v in a))
 
     def as_array(self) -> np.ndarray:
-        return np.array(dataclasses.astuple(self), dtype=np.int64)
+        # not dataclasses.astuple: it deep-copies recursively, 10 % of an env's control step (profiled)
+        return np.array([getattr(self, name) for name in _STATISTICS_FIELDS], dtype=np.int64)
 
     def __add__(self, other: IntegratorStatistics) -> IntegratorStatistics:
         return IntegratorStatistics.from_array(self.as_array() + other.as_array())
+
+
+_STATISTICS_FIELDS = tuple(f.name for f in dataclasses.fields(IntegratorStatistics))
 
 
 @dataclass(frozen=True)

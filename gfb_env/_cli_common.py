@@ -287,3 +287,15 @@ def unbalance_from_args(args: argparse.Namespace, bearing: BearingParameters, sp
             f"{u.eccentricity_um(bearing):.3g} um >= C): it must be below 1"
         )
     return u
+
+
+def check_eigen_grid(model: GFBModel) -> GFBModel:
+    """``model``, refused (``ValueError`` naming ``--grid``, exit 2) before any work when the dense
+    eigen-analysis of its state would be too large (:func:`gfb_env.analysis.stability.check_eigen_size`)."""
+    from gfb_env.analysis.stability import check_eigen_size
+
+    try:
+        check_eigen_size(model)
+    except ValueError as exc:
+        raise ValueError(f"--grid: {exc}") from None
+    return model

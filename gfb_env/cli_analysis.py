@@ -19,6 +19,7 @@ from gfb_env import jsonio
 from gfb_env._cli_common import (
     add_bearing_option,
     add_model_options,
+    check_eigen_grid,
     check_output_dir,
     grid_type,
     int_range,
@@ -58,15 +59,8 @@ def _check_scan(args: argparse.Namespace) -> None:
 
 def _analysis_model(args: argparse.Namespace):
     """The model, refused (exit 2) before any work when the dense eigen-analysis would be too large."""
-    from gfb_env.analysis.stability import check_eigen_size
-
     _check_scan(args)
-    model = model_from_args(args)
-    try:
-        check_eigen_size(model)
-    except ValueError as exc:
-        raise ValueError(f"--grid: {exc}") from None
-    return model
+    return check_eigen_grid(model_from_args(args))
 
 
 def _critical(args, model):
@@ -187,7 +181,6 @@ _MAP_FILES = ("sweep.jsonl", "stability_map.csv", "optimum_damping.csv", "stabil
 def cmd_map(args: argparse.Namespace) -> int:
     """Handler of ``gfb map``."""
     from gfb_env.analysis.maps import compute_stability_map, write_stability_map
-    from gfb_env.analysis.stability import check_eigen_size
     from gfb_env.model import GFBModel
 
     kws = _floats(args.foil_stiffness, "--foil-stiffness")
@@ -203,10 +196,8 @@ def cmd_map(args: argparse.Namespace) -> int:
         raise ValueError(
             f"--n-jobs must be -1 or lie in [1, {cpus}] (this machine's cores), got {args.n_jobs}"
         )
-    try:  # the largest model of the map (viscoelastic) must fit the dense eigen-analysis
-        check_eigen_size(GFBModel("viscoelastic", args.grid, bearing=args.bearing))
-    except ValueError as exc:
-        raise ValueError(f"--grid: {exc}") from None
+    # the largest model of the map (viscoelastic) must fit the dense eigen-analysis
+    check_eigen_grid(GFBModel("viscoelastic", args.grid, bearing=args.bearing))
     out = check_output_dir(args.out, "--out", _MAP_FILES)
     t0 = time.perf_counter()
     smap = compute_stability_map(

@@ -19,6 +19,7 @@ from gfb_env import jsonio
 from gfb_env._cli_common import (
     add_model_options,
     add_unbalance_options,
+    check_eigen_grid,
     check_output_dir,
     finite,
     in_range,
@@ -52,14 +53,7 @@ def _range(args: argparse.Namespace, bearing, default_lambda: tuple[float, float
 
 
 def _eigen_model(args: argparse.Namespace):
-    from gfb_env.analysis.stability import check_eigen_size
-
-    model = model_from_args(args)
-    try:
-        check_eigen_size(model)
-    except ValueError as exc:
-        raise ValueError(f"--grid: {exc}") from None
-    return model
+    return check_eigen_grid(model_from_args(args))
 
 
 # ------------------------------------------------------------------------------------ campbell

@@ -17,6 +17,7 @@ from gfb_env import jsonio
 from gfb_env._cli_common import (
     add_model_options,
     add_unbalance_options,
+    check_eigen_grid,
     check_output_dir,
     int_range,
     model_from_args,
@@ -53,15 +54,10 @@ def _range(args: argparse.Namespace, bearing) -> tuple[float, float]:
 def cmd_response(args: argparse.Namespace) -> int:
     """Handler of ``gfb response``."""
     from gfb_env.analysis.response import response_curve, transient_synchronous_orbit, unbalance_response
-    from gfb_env.analysis.stability import check_eigen_size
 
     out = check_output_dir(args.out, "--out", _FILES)
-    model = model_from_args(args)
+    model = check_eigen_grid(model_from_args(args))
     b = model.bearing
-    try:
-        check_eigen_size(model)
-    except ValueError as exc:
-        raise ValueError(f"--grid: {exc}") from None
     lo, hi = _range(args, b)
     point = None
     if args.bearing_number is not None:

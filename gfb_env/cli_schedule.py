@@ -19,6 +19,7 @@ from gfb_env import jsonio
 from gfb_env._cli_common import (
     add_bearing_option,
     add_unbalance_options,
+    check_eigen_grid,
     check_output_dir,
     grid_type,
     in_range,
@@ -150,7 +151,6 @@ def cmd_schedule(args: argparse.Namespace) -> int:
     from gfb_env._cli_common import bearing_from_args
     from gfb_env.analysis.runup import bearing_number_rate
     from gfb_env.analysis.schedule import design_run_up_schedule, verify_schedule
-    from gfb_env.analysis.stability import check_eigen_size
     from gfb_env.model import GFBModel
 
     b = bearing_from_args(args)
@@ -159,11 +159,9 @@ def cmd_schedule(args: argparse.Namespace) -> int:
         raise ValueError(f"--damping-range must satisfy 0 < DMIN < DMAX, got {dmin:g} {dmax:g}")
     if args.start_rpm is not None and not args.start_rpm < args.target_rpm:
         raise ValueError(f"--start-rpm must be below --target-rpm, got {args.start_rpm:g}")
-    model = GFBModel("viscoelastic", args.grid, bearing=b, foil_stiffness=args.foil_stiffness)
-    try:
-        check_eigen_size(model)
-    except ValueError as exc:
-        raise ValueError(f"--grid: {exc}") from None
+    model = check_eigen_grid(
+        GFBModel("viscoelastic", args.grid, bearing=b, foil_stiffness=args.foil_stiffness)
+    )
     out = check_output_dir(args.out, "--out", _FILES)
     # a balance grade is the permissible unbalance at the service speed: the target
     unbalance = unbalance_from_args(args, b, args.target_rpm)

@@ -30,6 +30,7 @@ import numpy as np  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 
 from gfb_env import jsonio  # noqa: E402
+from gfb_env._cli_common import OneLineParser, check_output_dir  # noqa: E402
 from gfb_env.integrator import TrapezoidalIntegrator  # noqa: E402
 from gfb_experiments.convergence_study import benchmark_case  # noqa: E402
 
@@ -77,11 +78,15 @@ def run_scipy(model, s0, method: str, rtol: float) -> dict:
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--repeat", type=int, default=3, help="runs of our integrator (median wall time)")
     p.add_argument("--skip-scipy", action="store_true", help="only time our integrator")
     p.add_argument("--out", type=Path, default=Path("results/bench_integrator"), help="output folder")
     a = p.parse_args()
+    try:  # before any work: an unwritable --out fails now
+        check_output_dir(str(a.out), "--out")
+    except ValueError as exc:
+        p.error(str(exc))
     load_start = os.getloadavg()[0]
     model, s0 = benchmark_case()
     t0 = time.perf_counter()

@@ -21,6 +21,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from gfb_env._cli_common import OneLineParser
+
 CHILD = r"""
 import json, time
 import gfb_env
@@ -44,7 +46,7 @@ print(json.dumps({"wall": min(walls), "cpu": min(cpus), "steps": res.steps, "fil
 
 
 def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("old", type=Path, help="checkout whose gfb_env is the reference")
     p.add_argument("new", type=Path, help="checkout whose gfb_env is measured against it")
     p.add_argument("--rounds", type=int, default=8, help="alternations (each runs both once)")

@@ -315,8 +315,10 @@ class GFBEnv(gym.Env):
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         if a.shape != (2,):
             raise ValueError(f"action must have shape (2,), got {np.shape(action)}")
-        clean = np.clip(np.nan_to_num(a, nan=0.0, posinf=1.0, neginf=-1.0), -1.0, 1.0)
-        return clean, bool(np.any(clean != a) or np.any(np.isnan(a)))
+        # two scalars: plain Python is ~10x cheaper than nan_to_num + clip on a 2-vector, same values
+        x0, x1 = float(a[0]), float(a[1])
+        c0, c1 = _clip_action(x0), _clip_action(x1)
+        return np.array([c0, c1]), (c0 != x0 or c1 != x1)
 
     def _command(self, a: np.ndarray) -> tuple[float, float]:
         """Lambda and the actual D_W at the end of the control step: the motor's speed ramp (within
@@ -605,6 +607,14 @@ class GFBEnv(gym.Env):
 
 
 # ----------------------------------------------------------------------------------------------
+def _clip_action(x: float) -> float:
+    """NaN -> 0, +-inf and out-of-range -> clipped to [-1, 1] (a NaN compares unequal, so the caller's
+    ``clean != raw`` reports it)."""
+    if x != x:
+        return 0.0
+    return 1.0 if x > 1.0 else (-1.0 if x < -1.0 else x)
+
+
 def _span(r: tuple[float, float]) -> float:
     v = float(r[1]) - float(r[0])
     return v if math.isfinite(v) and v >= 0 else 0.0

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -113,9 +114,10 @@ class ProximityProbes:
     def is_ideal(self) -> bool:
         return self.noise_um == 0.0 and self.bias_um == (0.0, 0.0) and self.bias_spread_um == 0.0
 
-    @property
+    @cached_property
     def directions(self) -> np.ndarray:
-        """Rows: the unit vectors (xi, eta components) from the bearing centre to the X and Y probes."""
+        """Rows: the unit vectors (xi, eta components) from the bearing centre to the X and Y probes
+        (computed once: the probes are read every control step)."""
         b = np.radians([self.x_angle_deg, self.y_angle_deg])
         return np.stack([np.sin(b), -np.cos(b)], axis=1)
 

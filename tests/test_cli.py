@@ -54,7 +54,17 @@ def test_equilibrium_table(capsys):
     code, out, _ = run(
         capsys, "equilibrium", "--structure", "rigid", "--bearing-number", "0.6", "--grid", "21x5"
     )
-    assert code == 0 and "eccentricity" in out and "attitude_angle_deg" in out
+    assert code == 0
+    table = dict(line.split(None, 1) for line in out.strip().splitlines())
+    # the table shows the same equilibrium as --json, and it carries the load (load balance)
+    code, js, _ = run(
+        capsys, "equilibrium", "--structure", "rigid", "--bearing-number", "0.6", "--grid", "21x5", "--json"
+    )
+    d = json.loads(js)
+    assert float(table["eccentricity"]) == pytest.approx(d["eccentricity"], rel=1e-5)
+    assert float(table["attitude_angle_deg"]) == pytest.approx(d["attitude_angle_deg"], rel=1e-5)
+    assert float(table["bearing_force"]) == pytest.approx(float(table["load"]), rel=1e-6)
+    assert 0.3 < d["eccentricity"] < 0.8 and 0 < d["attitude_angle_deg"] < 90  # ahead of the load
 
 
 def test_simulate_writes_outputs(tmp_path, capsys):

@@ -28,6 +28,16 @@ def test_fig5_quick(tmp_path):
     assert (tmp_path / "envelopes.csv").exists() and (tmp_path / "runup_coastdown.png").exists()
     s = json.loads((tmp_path / "summary.json").read_text())
     assert set(s["cases"]) == {"rigid", "viscoelastic"}
+    rigid, visco = s["cases"]["rigid"], s["cases"]["viscoelastic"]
+    # the whirl sets in on the run-up, later with the damped foil (paper Fig. 5), and grows to an orbit
+    # of the order of the clearance
+    assert 0.5 < rigid["onset_bearing_number_runup"] < visco["onset_bearing_number_runup"] < 0.8
+    for c in (rigid, visco):
+        assert c["max_xi_peak_to_peak"] > 1.0 and c["max_p00"] > 1.0
+    rows = list(csv.DictReader((tmp_path / "envelopes.csv").open()))
+    assert {r["structure"] for r in rows} == {"rigid", "viscoelastic"}
+    lam = [float(r["bearing_number"]) for r in rows if r["structure"] == "rigid" and r["leg"] == "up"]
+    assert lam == sorted(lam) and lam[0] == pytest.approx(0.5, abs=0.01)  # the ramp starts at 0.5
 
 
 def test_fig6_quick(tmp_path):

@@ -6,7 +6,7 @@ of the two regimes an episode lives in: a near-equilibrium run-up ramp (Lambda 0
 2 700 tau, i.e. 30 000 rpm/s) and 600 tau of developed whirl (Lambda = 0.75, D_W = 2.3), both with the
 integrator defaults.  One core; timings on a shared machine.  Run::
 
-    .venv/bin/python experiments/env_grid_tradeoff.py [--grids 79x7,41x7,31x7,25x7,21x7,41x5,31x5]
+    python -m gfb_experiments.env_grid_tradeoff [--grids 79x7,41x7,31x7,25x7,21x7,41x5,31x5]
 """
 
 from __future__ import annotations

@@ -6,8 +6,9 @@ speed, and the first observation shows the journal position (in units of the nom
 midplane pressure probes of that equilibrium.  Those ten numbers depend on the three parameters smoothly
 and (over the env's ranges) one to one, so an engineer with this package's model identifies the bearing
 by least squares before the first control step: :class:`BearingIdentifier` (a coarse 3 x 3 x 3 grid, then
-``scipy.optimize.least_squares`` within the env's documented ranges; ~40-60 equilibrium solves of
-~10 ms).  :class:`IdentifyingAgent` (``identify_map``) then reads the env's published table
+``scipy.optimize.least_squares`` within the env's documented ranges, restarted from the next grid points
+while the residual stays visible; ~60 equilibrium solves of ~5 ms on average, at most a few hundred:
+~0.3 s, zero control steps; all draws of seeds 0..149 and 10000..10049 recovered to 0.1 %).  :class:`IdentifyingAgent` (``identify_map``) then reads the env's published table
 (``env.table``, :class:`~gfb_env.envs.run_up_randomized.BestStableSpeedTable`: ``lambda_best`` and
 ``d_opt`` of a bearing) at the estimate and flies the map-informed schedule (damping ``d_opt``, ramp at
 the motor limit, hold at ``target_fraction * lambda_best``, capped as the env caps it) on the estimated
@@ -28,7 +29,6 @@ schedules of this family, not for every policy).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -104,8 +104,14 @@ class BearingIdentifier:
         scale = clearance_m / self.nominal.clearance_m
         return np.r_[xi * scale, eta * scale, s[L.midplane_probe_indices(self.n_probes)]], s
 
-    def fit(self, obs: np.ndarray, coarse: int = 3) -> BearingEstimate:
-        """``(C, f_K, F_L)`` that reproduce the first observation ``obs`` best (within the ranges)."""
+    def fit(
+        self, obs: np.ndarray, coarse: int = 3, max_starts: int = 6, accept_rms: float = 1e-5
+    ) -> BearingEstimate:
+        """``(C, f_K, F_L)`` that reproduce the first observation ``obs`` best (within the ranges).
+
+        Local fits from the ``max_starts`` best points of a ``coarse``-per-axis grid, in that order, until
+        one reproduces the observation to ``accept_rms`` (rms over the fitted entries; a float32
+        observation of the true draw gives ~1e-7); else the best of them."""
         y = self.measured(obs)
         self.solves = 0
         state: dict = {"guess": None}
@@ -118,26 +124,28 @@ class BearingIdentifier:
             state["guess"] = s
             return pred - y
 
-        # coarse grid in the unit cube: the start of the local fit (the fit is smooth but not convex)
+        # coarse grid in the unit cube: the starts of the local fit (smooth, but not convex: from a poor
+        # start the fit can stall at a bound, e.g. the lowest load, with a visible residual)
         ticks = np.linspace(0.0, 1.0, coarse)
-        best_x, best_r = None, math.inf
-        for a in ticks:
-            for b in ticks:
-                for c in ticks:
-                    x = np.array([a, b, c])
-                    r = float(np.sum(residual(x) ** 2))
-                    if r < best_r:
-                        best_x, best_r = x, r
-        sol = least_squares(
-            residual,
-            best_x,
-            bounds=(0.0, 1.0),
-            x_scale=1.0,
-            diff_step=1e-4,
-            xtol=1e-10,
-            ftol=1e-12,
-            max_nfev=60,
-        )
+        starts = [np.array([a, b, c]) for a in ticks for b in ticks for c in ticks]
+        cost = [float(np.sum(residual(x) ** 2)) for x in starts]
+        sol = None
+        for j in np.argsort(cost)[:max_starts]:
+            state["guess"] = None
+            trial = least_squares(
+                residual,
+                starts[j],
+                bounds=(0.0, 1.0),
+                x_scale=1.0,
+                diff_step=1e-4,
+                xtol=1e-10,
+                ftol=1e-12,
+                max_nfev=60,
+            )
+            if sol is None or trial.cost < sol.cost:
+                sol = trial
+            if np.sqrt(np.mean(sol.fun**2)) < accept_rms:
+                break
         p = self._param(sol.x)
         rms = float(np.sqrt(np.mean(sol.fun**2)))
         return BearingEstimate(float(p[0]), float(p[1]), float(p[2]), rms, self.solves)

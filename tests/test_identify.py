@@ -37,6 +37,9 @@ def _draw(info: dict) -> np.ndarray:
         # corners of the documented ranges: the fit must not stick inside the box
         {"seed": 7, "options": {"clearance_m": 40e-6, "stiffness_factor": 1.4, "load_n": 25.0}},
         {"seed": 8, "options": {"clearance_m": 60e-6, "stiffness_factor": 0.7, "load_n": 15.0}},
+        # draws where a local fit from the best grid point alone stalls at the lowest load
+        {"seed": 0, "options": {"clearance_m": 44.98e-6, "stiffness_factor": 1.268, "load_n": 16.78}},
+        {"seed": 0, "options": {"clearance_m": 52.18e-6, "stiffness_factor": 1.178, "load_n": 16.98}},
     ],
 )
 def test_identifier_recovers_the_draw_from_the_first_observation(renv, reset):
@@ -45,7 +48,17 @@ def test_identifier_recovers_the_draw_from_the_first_observation(renv, reset):
     got = np.array([est.clearance_m, est.stiffness_factor, est.load_n])
     # stated accuracy: 0.1 % of each parameter (the observation is float32; the fit reaches ~1e-6)
     np.testing.assert_allclose(got, _draw(info), rtol=1e-3)
-    assert est.residual < 1e-5 and est.solves < 200
+    assert est.residual < 1e-5 and est.solves < 400
+
+
+def test_identifier_restarts_where_one_local_fit_stalls(renv):
+    obs, info = renv.reset(
+        seed=0, options={"clearance_m": 44.98e-6, "stiffness_factor": 1.268, "load_n": 16.78}
+    )
+    one = BearingIdentifier(renv).fit(obs, max_starts=1)
+    assert one.residual > 1e-3 and one.load_n == pytest.approx(15.0)  # stalled at the bound
+    est = BearingIdentifier(renv).fit(obs)
+    assert est.residual < 1e-5 and est.load_n == pytest.approx(16.78, rel=1e-3)
 
 
 def _envs_in(obj, seen=None) -> list:

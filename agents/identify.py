@@ -8,7 +8,8 @@ and (over the env's ranges) one to one, so an engineer with this package's model
 by least squares before the first control step: :class:`BearingIdentifier` (a coarse 3 x 3 x 3 grid, then
 ``scipy.optimize.least_squares`` within the env's documented ranges, restarted from the next grid points
 while the residual stays visible; ~60 equilibrium solves of ~5 ms on average, at most a few hundred:
-~0.3 s, zero control steps; all draws of seeds 0..149 and 10000..10049 recovered to 0.1 %).  :class:`IdentifyingAgent` (``identify_map``) then reads the env's published table
+~0.3 s, zero control steps; all draws of seeds 0..149 and 10000..10049 recovered to 0.1 %).
+:class:`IdentifyingAgent` (``identify_map``) then reads the env's published table
 (``env.table``, :class:`~gfb_env.envs.run_up_randomized.BestStableSpeedTable`: ``lambda_best`` and
 ``d_opt`` of a bearing) at the estimate and flies the map-informed schedule (damping ``d_opt``, ramp at
 the motor limit, hold at ``target_fraction * lambda_best``, capped as the env caps it) on the estimated

@@ -4,7 +4,7 @@ RunUpRandomized-v0 hides the drawn bearing (clearance ``C``, foil stiffness fact
 ``F_L``), but the episode starts at the *static equilibrium* of that bearing at the documented start
 speed, and the first observation shows the journal position (in units of the nominal clearance) and the
 midplane pressure probes of that equilibrium.  Those ten numbers depend on the three parameters smoothly
-and (over the env's ranges) one to one, so an engineer with this package's model identifies the bearing
+and, on every draw tried, identifiably, so an engineer with this package's model identifies the bearing
 by least squares before the first control step: :class:`BearingIdentifier` (a coarse 3 x 3 x 3 grid, then
 ``scipy.optimize.least_squares`` within the env's documented ranges, restarted from the next grid points
 while the residual stays visible; ~60 equilibrium solves of ~5 ms on average, at most a few hundred:

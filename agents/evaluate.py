@@ -139,11 +139,18 @@ def run_episode(
 ) -> EpisodeResult:
     """Play one episode of ``env`` (reset with ``seed``) with ``policy`` (deterministic).
 
+    A policy with an ``observe_reset_info(info)`` method (an oracle, :class:`gfb_agents.identify.OracleAgent`)
+    is handed the reset ``info`` before its first action; every other policy sees only observations.
+
     ``time_to_target_s`` is the rotor time at which the speed first came within the task's tolerance of
     its target (RunUp tasks) or, for tasks without a speed target, the time of success; NaN if never.
     """
     policy.reset()
     obs, info = env.reset(seed=seed)
+    # only an oracle (it says so in its name and docstring) takes the reset info, i.e. the hidden draw
+    observe = getattr(policy, "observe_reset_info", None)
+    if observe is not None:
+        observe(info)
     u = env.unwrapped
     lam_t = info.get("target_bearing_number")
     tol = getattr(u, "target_tolerance", None)

@@ -34,6 +34,7 @@ from gfb_agents.evaluate import (
     load_learned_policies,
     summarise,
 )
+from gfb_agents.identify import IdentifyingAgent, OracleAgent
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.scripted import Policy, make_scripted_agents
 from gfb_env import jsonio
@@ -61,10 +62,13 @@ COLUMNS = [
 
 
 def agents_for(task: str, learned: list[LearnedPolicy], env_kwargs: dict | None = None) -> dict[str, Policy]:
-    """Scripted baselines (built against ``task``'s documented configuration) and the learned policies
-    trained on ``task``."""
+    """Scripted baselines (built against ``task``'s documented configuration), the identifying rule
+    ``identify_map``, the ``oracle`` (it knows the hidden draw) and the learned policies trained on
+    ``task``."""
     env = gym.make(task, **(env_kwargs or {}))
     out: dict[str, Policy] = dict(make_scripted_agents(env))
+    for ref in (IdentifyingAgent(env), OracleAgent(env)):
+        out[ref.name] = ref
     env.close()
     for p in learned:
         if p.env_id == task:

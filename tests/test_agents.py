@@ -227,7 +227,7 @@ def test_benchmark_quick_writes_table(tmp_path):
         "touchdowns",
     }
     assert required <= set(rows[0]) and set(COLUMNS) == set(rows[0])
-    assert {r["kind"] for r in rows} == {"scripted"}
+    assert {r["kind"] for r in rows} == {"scripted", "oracle"}
     assert all(r["episodes"] == "1" for r in rows)
     assert "| task | agent |" in (tmp_path / "benchmark_agents.md").read_text()
     assert (tmp_path / "benchmark_agents_paths.png").stat().st_size > 10_000

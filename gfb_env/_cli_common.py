@@ -299,3 +299,66 @@ def check_eigen_grid(model: GFBModel) -> GFBModel:
     except ValueError as exc:
         raise ValueError(f"--grid: {exc}") from None
     return model
+
+
+def add_speed_range_options(
+    p: argparse.ArgumentParser, default_text: str, lambda_help: str | None = None
+) -> None:
+    """``--speed-range MIN MAX`` (rpm) or ``--bearing-range MIN MAX`` (Lambda), mutually exclusive;
+    read back by :func:`bearing_range_from_args`."""
+    g = p.add_mutually_exclusive_group()
+    g.add_argument(
+        "--speed-range",
+        type=positive("--speed-range"),
+        nargs=2,
+        metavar=("MIN", "MAX"),
+        help=f"speed range in rpm (default: {default_text})",
+    )
+    g.add_argument(
+        "--bearing-range",
+        type=positive("--bearing-range"),
+        nargs=2,
+        metavar=("MIN", "MAX"),
+        help=lambda_help or "the same range as bearing numbers Lambda",
+    )
+
+
+def bearing_range_from_args(
+    args: argparse.Namespace, bearing: BearingParameters, default_lambda: tuple[float, float]
+) -> tuple[float, float]:
+    """``(Lambda_min, Lambda_max)`` from ``--speed-range`` (rpm) or ``--bearing-range``, checked
+    (``ValueError`` naming the option); ``default_lambda`` when neither is given."""
+    if getattr(args, "speed_range", None) is not None:
+        lo, hi = args.speed_range
+        if not lo < hi:
+            raise ValueError(f"--speed-range must satisfy 0 < MIN < MAX, got {lo:g} {hi:g}")
+        return bearing.bearing_number_at(lo), bearing.bearing_number_at(hi)
+    if getattr(args, "bearing_range", None) is not None:
+        lo, hi = args.bearing_range
+        if not lo < hi:
+            raise ValueError(f"--bearing-range must satisfy 0 < MIN < MAX, got {lo:g} {hi:g}")
+        return lo, hi
+    return default_lambda
+
+
+def add_start_options(p: argparse.ArgumentParser) -> None:
+    """``--perturbation DXI DETA`` (the start's displacement from the equilibrium, units of C) and
+    ``--touchdown HMIN`` (the film thickness that stops a run), shared by the transient commands; the
+    start film is checked against the threshold before any work (``gfb_env.cli.check_perturbation``)."""
+    p.add_argument(
+        "--perturbation",
+        type=finite("--perturbation"),
+        nargs=2,
+        default=[0.01, 0.0],
+        metavar=("DXI", "DETA"),
+        help="displacement of the journal from the equilibrium (units of C), the seed of the whirl; the "
+        "start film must stay thicker than --touchdown everywhere. Default: 0.01 0",
+    )
+    p.add_argument(
+        "--touchdown",
+        type=in_range("--touchdown", 0.0, 1.0),
+        default=0.01,
+        metavar="HMIN",
+        help="min film thickness (units of C) that stops the run as a touchdown, in [0, 1). "
+        "Default: %(default)s",
+    )

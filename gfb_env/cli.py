@@ -22,11 +22,10 @@ from gfb_env._cli_common import (
     add_bearing_option,
     add_model_options,
     add_speed_options,
+    add_start_options,
     add_unbalance_options,
     bearing_number_from_args,
     check_output_dir,
-    finite,
-    in_range,
     model_from_args,
     positive,
     unbalance_from_args,
@@ -355,28 +354,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="initial state: the centred journal at ambient pressure, or the static "
         "equilibrium displaced by --perturbation. Default: %(default)s",
     )
-    p.add_argument(
-        "--perturbation",
-        type=finite("--perturbation"),
-        nargs=2,
-        default=[0.01, 0.0],
-        metavar=("DXI", "DETA"),
-        help="displacement of the journal from equilibrium (units of C); the start film must stay "
-        "thicker than --touchdown everywhere. Default: 0.01 0",
-    )
+    add_start_options(p)
     p.add_argument(
         "--record-interval",
         type=positive("--record-interval"),
         default=0.25,
         metavar="DTAU",
         help="sampling interval of the output (tau). Default: %(default)s",
-    )
-    p.add_argument(
-        "--touchdown",
-        type=in_range("--touchdown", 0.0, 1.0),
-        default=0.01,
-        metavar="HMIN",
-        help="min film thickness that counts as touchdown (units of C), in [0, 1). Default: %(default)s",
     )
     add_unbalance_options(p)
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")

@@ -18,11 +18,12 @@ import numpy as np
 from gfb_env import jsonio
 from gfb_env._cli_common import (
     add_model_options,
+    add_speed_range_options,
+    add_start_options,
     add_unbalance_options,
+    bearing_range_from_args,
     check_eigen_grid,
     check_output_dir,
-    finite,
-    in_range,
     int_range,
     model_from_args,
     positive,
@@ -37,21 +38,6 @@ _CAMPBELL_LAMBDA = (0.1, 1.2)
 _CAMPBELL_FILES = ("campbell.csv", "campbell.png", "summary.json")
 
 
-def _range(args: argparse.Namespace, bearing, default_lambda: tuple[float, float]) -> tuple[float, float]:
-    """``(Lambda_min, Lambda_max)`` from ``--speed-range`` (rpm) or ``--bearing-range``, checked."""
-    if getattr(args, "speed_range", None) is not None:
-        lo, hi = args.speed_range
-        if not lo < hi:
-            raise ValueError(f"--speed-range must satisfy 0 < MIN < MAX, got {lo:g} {hi:g}")
-        return bearing.bearing_number_at(lo), bearing.bearing_number_at(hi)
-    if getattr(args, "bearing_range", None) is not None:
-        lo, hi = args.bearing_range
-        if not lo < hi:
-            raise ValueError(f"--bearing-range must satisfy 0 < MIN < MAX, got {lo:g} {hi:g}")
-        return lo, hi
-    return default_lambda
-
-
 def _eigen_model(args: argparse.Namespace):
     return check_eigen_grid(model_from_args(args))
 
@@ -63,7 +49,7 @@ def cmd_campbell(args: argparse.Namespace) -> int:
 
     model = _eigen_model(args)
     b = model.bearing
-    lo, hi = _range(args, b, _CAMPBELL_LAMBDA)
+    lo, hi = bearing_range_from_args(args, b, _CAMPBELL_LAMBDA)
     out = check_output_dir(args.out, "--out", _CAMPBELL_FILES)
     t0 = time.perf_counter()
     cd = campbell_diagram(model, np.linspace(lo, hi, args.n_speeds), args.foil_damping, args.modes)
@@ -218,7 +204,7 @@ def check_runup_args(args: argparse.Namespace, model) -> dict:
     from gfb_env.cli import MAX_DURATION, MAX_SAMPLES
 
     b = model.bearing
-    lo, hi = _range(args, b, _RUNUP_LAMBDA)
+    lo, hi = bearing_range_from_args(args, b, _RUNUP_LAMBDA)
     rate = bearing_number_rate(model, args.acceleration)
     legs = 2 if args.coast_down else 1
     duration = legs * (hi - lo) / rate
@@ -547,24 +533,6 @@ def _plot_envelope(
 
 
 # ------------------------------------------------------------------------------------- parser
-def _add_range_options(p: argparse.ArgumentParser, default_text: str) -> None:
-    g = p.add_mutually_exclusive_group()
-    g.add_argument(
-        "--speed-range",
-        type=positive("--speed-range"),
-        nargs=2,
-        metavar=("MIN", "MAX"),
-        help=f"speed range in rpm (default: {default_text})",
-    )
-    g.add_argument(
-        "--bearing-range",
-        type=positive("--bearing-range"),
-        nargs=2,
-        metavar=("MIN", "MAX"),
-        help="the same range as bearing numbers Lambda",
-    )
-
-
 def add_engineering_commands(subparsers) -> None:
     """Add ``campbell`` and ``runup`` to an :mod:`argparse` subparsers object."""
     p = subparsers.add_parser(
@@ -590,7 +558,7 @@ def add_engineering_commands(subparsers) -> None:
         ),
     )
     add_model_options(p)
-    _add_range_options(p, "Lambda 0.1 to 1.2 of the bearing; Table 1: 6 005 - 72 060 rpm")
+    add_speed_range_options(p, "Lambda 0.1 to 1.2 of the bearing; Table 1: 6 005 - 72 060 rpm")
     p.add_argument(
         "--n-speeds",
         type=int_range("--n-speeds", 3, 1000),
@@ -643,7 +611,7 @@ def add_engineering_commands(subparsers) -> None:
         ),
     )
     add_model_options(p)
-    _add_range_options(
+    add_speed_range_options(
         p, "Lambda 0.5 to 0.833 of the bearing, the paper's Fig. 5; Table 1: 30 025 - 50 025 rpm"
     )
     p.add_argument(
@@ -676,21 +644,7 @@ def add_engineering_commands(subparsers) -> None:
         metavar="DTAU",
         help="sampling interval in tau (default 0.5); must resolve the 1x line at the top speed",
     )
-    p.add_argument(
-        "--perturbation",
-        type=finite("--perturbation"),
-        nargs=2,
-        default=[0.01, 0.0],
-        metavar=("DXI", "DETA"),
-        help="initial displacement from the equilibrium (units of C), the seed of the whirl. Default: 0.01 0",
-    )
-    p.add_argument(
-        "--touchdown",
-        type=in_range("--touchdown", 0.0, 1.0),
-        default=0.01,
-        metavar="HMIN",
-        help="min film thickness (units of C) that stops the run as a touchdown. Default: %(default)s",
-    )
+    add_start_options(p)
     p.add_argument(
         "--nondimensional",
         action="store_true",

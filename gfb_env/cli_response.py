@@ -16,7 +16,9 @@ import numpy as np
 from gfb_env import jsonio
 from gfb_env._cli_common import (
     add_model_options,
+    add_speed_range_options,
     add_unbalance_options,
+    bearing_range_from_args,
     check_eigen_grid,
     check_output_dir,
     int_range,
@@ -37,20 +39,6 @@ _COLUMNS = (
 )  # fmt: skip
 
 
-def _range(args: argparse.Namespace, bearing) -> tuple[float, float]:
-    if args.speed_range is not None:
-        lo, hi = args.speed_range
-        if not lo < hi:
-            raise ValueError(f"--speed-range must satisfy 0 < MIN < MAX, got {lo:g} {hi:g}")
-        return bearing.bearing_number_at(lo), bearing.bearing_number_at(hi)
-    if args.bearing_range is not None:
-        lo, hi = args.bearing_range
-        if not lo < hi:
-            raise ValueError(f"--bearing-range must satisfy 0 < MIN < MAX, got {lo:g} {hi:g}")
-        return lo, hi
-    return _LAMBDA_RANGE
-
-
 def cmd_response(args: argparse.Namespace) -> int:
     """Handler of ``gfb response``."""
     from gfb_env.analysis.response import response_curve, transient_synchronous_orbit, unbalance_response
@@ -58,7 +46,7 @@ def cmd_response(args: argparse.Namespace) -> int:
     out = check_output_dir(args.out, "--out", _FILES)
     model = check_eigen_grid(model_from_args(args))
     b = model.bearing
-    lo, hi = _range(args, b)
+    lo, hi = bearing_range_from_args(args, b, _LAMBDA_RANGE)
     point = None
     if args.bearing_number is not None:
         point = float(args.bearing_number)
@@ -252,20 +240,8 @@ def add_response_command(subparsers) -> None:
         "--bearing-number", type=positive("--bearing-number"), metavar="LAMBDA", help="evaluation speed"
     )
     g.add_argument("--speed-rpm", type=positive("--speed-rpm"), metavar="N", help="evaluation speed in rpm")
-    r = p.add_mutually_exclusive_group()
-    r.add_argument(
-        "--speed-range",
-        type=positive("--speed-range"),
-        nargs=2,
-        metavar=("MIN", "MAX"),
-        help="speed range of the curve in rpm (default: Lambda 0.1 to 1.0; Table 1: 6 005 - 60 050 rpm)",
-    )
-    r.add_argument(
-        "--bearing-range",
-        type=positive("--bearing-range"),
-        nargs=2,
-        metavar=("MIN", "MAX"),
-        help="the same in Lambda",
+    add_speed_range_options(
+        p, "Lambda 0.1 to 1.0 of the bearing; Table 1: 6 005 - 60 050 rpm", "the same in Lambda"
     )
     p.add_argument(
         "--n-speeds",

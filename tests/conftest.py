@@ -1,3 +1,5 @@
+import time
+
 import numpy as np
 import pytest
 
@@ -19,3 +21,20 @@ def random_admissible_state(model: GFBModel, rng: np.random.Generator) -> np.nda
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+def assert_refused_at_once(main, argv: list[str], option: str, fragment: str, capsys, out) -> None:
+    """``main(argv)`` (the ``gfb`` CLI) refuses: exit code 2, one stderr line ``gfb <cmd>: error: ...``
+    naming ``option`` and containing ``fragment``, nothing on stdout, ``out`` not created, within 20 s
+    (no heavy work before the refusal)."""
+    t0 = time.perf_counter()
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    stdout, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
+    assert lines[0].startswith(f"gfb {argv[0]}: error:") and option in lines[0] and fragment in lines[0]
+    assert stdout == "" and not out.exists()
+    assert time.perf_counter() - t0 < 20

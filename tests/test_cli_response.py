@@ -3,9 +3,9 @@ and one-line refusals."""
 
 import csv
 import json
-import time
 
 import pytest
+from conftest import assert_refused_at_once
 
 from gfb_env.analysis.response import unbalance_response
 from gfb_env.cli import main
@@ -135,14 +135,4 @@ def test_hostile_input_one_line_exit_2(tmp_path, capsys, argv, option, fragment)
     argv = [a.replace("{out}", str(out)).replace("{file}", str(a_file)) for a in argv]
     if "--verify" not in argv:
         argv += ["--grid", "31x7"] if "--grid" not in argv else []
-    t0 = time.perf_counter()
-    try:
-        code = main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    stdout, err = capsys.readouterr()
-    lines = err.strip().splitlines()
-    assert code == 2 and len(lines) == 1, err
-    assert lines[0].startswith(f"gfb {argv[0]}: error:") and option in lines[0] and fragment in lines[0]
-    assert stdout == "" and not out.exists()
-    assert time.perf_counter() - t0 < 20
+    assert_refused_at_once(main, argv, option, fragment, capsys, out)

@@ -522,6 +522,7 @@ class GFBEnv(gym.Env):
         xi, eta, xi_dot, eta_dot = model.layout.rotor(s)
         force = model.bearing_force(s)
         lam = integ.bearing_number
+        eps = math.hypot(xi, eta)  # = model.eccentricity(s), without a second state check
         info = {
             "step": ep.step,
             "tau": integ.tau,
@@ -540,8 +541,8 @@ class GFBEnv(gym.Env):
             "eta_um": b.micrometres(eta),
             "xi_dot_m_s": b.micrometres(xi_dot) * 1e-6 / b.time_scale_s,
             "eta_dot_m_s": b.micrometres(eta_dot) * 1e-6 / b.time_scale_s,
-            "eccentricity": model.eccentricity(s),
-            "eccentricity_um": b.micrometres(model.eccentricity(s)),
+            "eccentricity": eps,
+            "eccentricity_um": b.micrometres(eps),
             "min_film_thickness": ep.min_film_thickness,
             "min_film_thickness_um": b.micrometres(ep.min_film_thickness),
             "whirl_amplitude": ep.whirl_amplitude,

@@ -350,12 +350,6 @@ class GFBEnv(gym.Env):
         integ.reset(s, integ.bearing_number, integ.foil_damping, integ.tau, integ.rotation_angle)
         return True
 
-    def _advance_plant(self, bearing_number: float, foil_damping: float) -> tuple[StepOutcome, PlantTrace]:
-        """Integrate one control interval with Lambda and D_W ramping to the commanded values."""
-        lam0 = self._integ.bearing_number
-        self._schedule_shocks()
-        return self._plant_outcome(lam0, self._run_integrator(bearing_number, foil_damping))
-
     def _run_integrator(self, bearing_number: float, foil_damping: float) -> AdvanceResult | Exception:
         """The integrator over one control interval (the only compiled work of a step): its result, or
         the numerical failure it raised (judged by :meth:`_plant_outcome`)."""

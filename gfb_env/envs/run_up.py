@@ -130,7 +130,7 @@ class RunUpEnv(GFBEnv):
     def __init__(
         self,
         target_fraction: float = 0.95,
-        start_speed_rpm: float = 27_000.0,
+        start_speed_rpm: float | None = None,
         target_tolerance: float = 0.01,
         progress_weight: float = 10.0,
         time_penalty: float = 0.02,
@@ -145,6 +145,8 @@ class RunUpEnv(GFBEnv):
         self.target_tolerance = check_in(
             "target_tolerance", target_tolerance, 0.0, 0.5, lo_open=True, hi_open=True
         )
+        if start_speed_rpm is None:  # the task's default, from the validated configuration
+            start_speed_rpm = self._default_start_speed_rpm()
         lo, hi = self.speed_range_rpm
         if not (
             isinstance(start_speed_rpm, (int, float))
@@ -166,6 +168,10 @@ class RunUpEnv(GFBEnv):
         if not self.start_bearing_number < self.target_bearing_number:
             raise ValueError("start_speed_rpm must be below the target speed")
         self._start_equilibrium = find_equilibrium(self._nominal_model, self.start_bearing_number)
+
+    def _default_start_speed_rpm(self) -> float:
+        """27 000 rpm: Lambda_0 = 0.450 for the nominal bearing, stable for every damping."""
+        return 27_000.0
 
     # ------------------------------------------------------------------------------------------
     def _setup_episode(self, options) -> EpisodeSetup:

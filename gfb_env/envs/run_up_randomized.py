@@ -11,7 +11,7 @@ from scipy.interpolate import RegularGridInterpolator
 
 from gfb_env.envs._data import randomized_task_table
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, viscoelastic_model
-from gfb_env.envs.config import EnvConfig, check_bool, check_in
+from gfb_env.envs.config import check_bool, check_in
 from gfb_env.envs.run_up import RunUpEnv, RunUpTarget
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import Grid
@@ -153,15 +153,12 @@ class RunUpRandomizedEnv(RunUpEnv):
         self.clearance_range_m = ranges["clearance_range_m"]
         self.stiffness_factor_range = ranges["stiffness_factor_range"]
         self.load_range_n = ranges["load_range_n"]
-        if start_speed_rpm is None:
-            # validated before use (render_mode is the base class's own argument)
-            nominal = EnvConfig.from_kwargs(
-                {k: v for k, v in kwargs.items() if k != "render_mode"}
-            ).nominal_bearing
-            start_speed_rpm = round(0.85 * self.lowest_critical_speed_rpm(nominal), -2)
-        if "motor" not in kwargs:
-            kwargs.setdefault("max_acceleration_rpm_per_s", 30_000.0)
         super().__init__(start_speed_rpm=start_speed_rpm, grid=grid, **kwargs)
+
+    def _default_start_speed_rpm(self) -> float:
+        """85 % of the lowest speed at which a bearing of the ranges loses stability at the least
+        damping: the start is stable for every draw and damping."""
+        return round(0.85 * self.lowest_critical_speed_rpm(self.nominal_bearing), -2)
 
     def lowest_critical_speed_rpm(self, nominal: BearingParameters | None = None) -> float:
         """Lowest speed (rpm) at which a bearing of the ranges loses stability with the least damping

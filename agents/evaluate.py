@@ -7,6 +7,11 @@
   time to target, final speed, max whirl amplitude, touchdown, the (Lambda, D_W) path).
 * :func:`evaluate` plays a fixed list of seeds and :func:`summarise` reduces the results to the benchmark
   row (success rate, mean return with a 95 % confidence interval, ...).
+
+Learned policies may have memory: a recurrent policy (sb3-contrib ``RecurrentPPO``) gets its state back at
+every step (``run_episode`` passes ``state`` through, as SB3's own evaluation does), and a frame-stack
+policy (``frame_stack > 1`` in ``run.json``) keeps its last observations per env, as SB3's
+``VecFrameStack`` does in training.
 """
 
 from __future__ import annotations
@@ -31,9 +36,36 @@ __all__ = [
     "summarise",
     "load_learned_policies",
     "POLICIES_DIR",
+    "LEARNED_ALGOS",
+    "algo_class",
 ]
 
 POLICIES_DIR = Path(__file__).resolve().parent / "policies"
+
+
+#: algorithms a learned policy may come from (``gfb_agents.train --algo``)
+LEARNED_ALGOS = ("ppo", "sac", "recurrentppo")
+
+
+def algo_class(algo: str):
+    """The SB3 / sb3-contrib class of ``algo`` (one of :data:`LEARNED_ALGOS`)."""
+    if algo == "recurrentppo":
+        from sb3_contrib import RecurrentPPO
+
+        return RecurrentPPO
+    from stable_baselines3 import PPO, SAC
+
+    if algo not in ("ppo", "sac"):
+        raise ValueError(f"algo must be one of {LEARNED_ALGOS}, got {algo!r}")
+    return {"ppo": PPO, "sac": SAC}[algo]
+
+
+def _find_meta(*dirs: Path) -> dict:
+    for d in dirs:
+        for mp in (d / "run.json", d / "policy.json"):
+            if mp.exists():
+                return json.loads(mp.read_text())
+    return {}
 
 
 class LearnedPolicy(Policy):
@@ -41,33 +73,39 @@ class LearnedPolicy(Policy):
 
     Args:
         path: a directory with ``model.zip`` (+ ``vecnormalize.pkl``, + ``run.json`` naming the algo and
-            env id), or the ``.zip`` itself.
-        algo: ``"ppo"`` or ``"sac"`` (default: from ``run.json``).
+            env id), a training run's directory (then ``which`` picks ``best/``, the checkpoint selected on
+            the validation seeds, or the final ``model.zip``), or the ``.zip`` itself.
+        algo: ``"ppo"``, ``"sac"`` or ``"recurrentppo"`` (default: from ``run.json``).
         name: display name (default: the directory name).
+        which: ``"best"`` (default: ``best/model.zip`` where it exists, else the final model) or
+            ``"final"``.
     """
 
     kind = "learned"
 
-    def __init__(self, path: str | Path, algo: str | None = None, name: str | None = None):
-        from stable_baselines3 import PPO, SAC
-
+    def __init__(
+        self, path: str | Path, algo: str | None = None, name: str | None = None, which: str = "best"
+    ):
+        if which not in ("best", "final"):
+            raise ValueError(f"which must be 'best' or 'final', got {which!r}")
         p = Path(path)
-        zip_path = p / "model.zip" if p.is_dir() else p
+        if p.is_dir() and which == "best" and (p / "best" / "model.zip").exists():
+            zip_path = p / "best" / "model.zip"
+        else:
+            zip_path = p / "model.zip" if p.is_dir() else p
         d = zip_path.parent
         if not zip_path.exists():
             raise FileNotFoundError(f"no model at {zip_path}")
-        meta = {}
-        for mp in (d / "run.json", d / "policy.json"):
-            if mp.exists():
-                meta = json.loads(mp.read_text())
-                break
+        meta = _find_meta(d, d.parent) if d.name == "best" else _find_meta(d)
         self.meta = meta
         algo = (algo or meta.get("algo") or "").lower()
-        if algo not in ("ppo", "sac"):
-            raise ValueError(f"cannot tell the algorithm of {zip_path}; pass algo='ppo' or 'sac'")
+        if algo not in LEARNED_ALGOS:
+            raise ValueError(f"cannot tell the algorithm of {zip_path}; pass algo= one of {LEARNED_ALGOS}")
         self.algo = algo
         self.env_id: str | None = meta.get("env_id")
-        self.model = {"ppo": PPO, "sac": SAC}[algo].load(str(zip_path), device="cpu")
+        self.frame_stack = int(meta.get("frame_stack", 1) or 1)
+        self.recurrent = algo == "recurrentppo"
+        self.model = algo_class(algo).load(str(zip_path), device="cpu")
         # the frozen observation statistics only (the unpickled VecNormalize has no venv and cannot be
         # pickled again, e.g. to a joblib worker)
         self.obs_mean = self.obs_var = None
@@ -79,8 +117,9 @@ class LearnedPolicy(Policy):
             if v.norm_obs:
                 self.obs_mean, self.obs_var = np.asarray(v.obs_rms.mean), np.asarray(v.obs_rms.var)
                 self.epsilon, self.clip_obs = float(v.epsilon), float(v.clip_obs)
-        self._args = (str(path), algo, name)
-        self.name = name or (d.name if p.is_dir() else zip_path.stem)
+        self._args = (str(path), algo, name, which)
+        self.name = name or (p.name if p.is_dir() else zip_path.stem)
+        self._stack: np.ndarray | None = None  # (n_envs, frame_stack * n_obs), VecFrameStack's layout
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         """The observation as the model saw it in training (VecNormalize statistics, frozen)."""
@@ -93,10 +132,37 @@ class LearnedPolicy(Policy):
         # pickled by path (a joblib worker reloads the files)
         return (LearnedPolicy, self._args)
 
-    def predict(self, observation, state=None, episode_start=None, deterministic=True):
-        return self.model.predict(
-            self.normalize(observation), state=state, episode_start=episode_start, deterministic=deterministic
+    def reset(self) -> None:
+        self._stack = None
+
+    def _stacked(self, x: np.ndarray, episode_start) -> np.ndarray:
+        """SB3's ``VecFrameStack`` (channels last): the last ``frame_stack`` normalised observations side
+        by side, the oldest first, zeros before the episode's first one."""
+        single = x.ndim == 1
+        x2 = x[None, :] if single else x
+        n, k = x2.shape[0], x2.shape[1]
+        starts = (
+            np.zeros(n, dtype=bool)
+            if episode_start is None
+            else np.broadcast_to(np.asarray(episode_start, dtype=bool), (n,))
         )
+        if self._stack is None or self._stack.shape[0] != n:
+            self._stack = np.zeros((n, self.frame_stack * k), dtype=np.float32)
+            starts = np.ones(n, dtype=bool)
+        self._stack[starts] = 0.0
+        self._stack = np.roll(self._stack, -k, axis=1)
+        self._stack[:, -k:] = x2
+        return self._stack[0].copy() if single else self._stack.copy()
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        x = self.normalize(observation)
+        if self.frame_stack > 1:
+            x = self._stacked(x, episode_start)
+        if self.recurrent and episode_start is not None:
+            # RecurrentPPO wants one flag per env, as an array
+            n = 1 if x.ndim == 1 else x.shape[0]
+            episode_start = np.broadcast_to(np.asarray(episode_start, dtype=bool), (n,)).copy()
+        return self.model.predict(x, state=state, episode_start=episode_start, deterministic=deterministic)
 
 
 def load_learned_policies(root: str | Path = POLICIES_DIR) -> list[LearnedPolicy]:
@@ -129,6 +195,8 @@ class EpisodeResult:
     final_stable: bool
     max_whirl_amplitude: float
     touchdown: bool
+    episode_cost: float = math.nan
+    damping_command_change: float = math.nan
     path_bearing_number: list[float] = field(default_factory=list)
     path_damping: list[float] = field(default_factory=list)
     path_whirl: list[float] = field(default_factory=list)
@@ -144,6 +212,10 @@ def run_episode(
 
     ``time_to_target_s`` is the rotor time at which the speed first came within the task's tolerance of
     its target (RunUp tasks) or, for tasks without a speed target, the time of success; NaN if never.
+    ``episode_cost`` is the sum of ``info["cost"]`` over the steps (NaN for a task without costs);
+    ``damping_command_change`` is the mean ``|a_damping(k) - a_damping(k-1)|`` of the *commanded* damping
+    (action scale, log D_W: 2 is the whole range; step 0 against the damping of the reset observation),
+    the chattering a real actuator would have to follow.
     """
     policy.reset()
     obs, info = env.reset(seed=seed)
@@ -158,12 +230,21 @@ def run_episode(
     lams, dws, amps = [info["bearing_number"]], [info["foil_damping"]], [info["whirl_amplitude"]]
     start = True
     terminated = truncated = False
+    state = None
+    prev_a1 = float(obs[u.observation_layout.damping])
+    cost, has_cost, dmove = 0.0, False, 0.0
     while True:
-        action, _ = policy.predict(obs, episode_start=np.array([start]), deterministic=True)
+        action, state = policy.predict(obs, state=state, episode_start=np.array([start]), deterministic=True)
         start = False
+        a1 = float(np.clip(np.asarray(action, dtype=np.float64).reshape(-1)[1], -1.0, 1.0))
+        dmove += abs(a1 - prev_a1)
+        prev_a1 = a1
         obs, r, terminated, truncated, info = env.step(action)
         ret += float(r)
         steps += 1
+        if "cost" in info:
+            has_cost = True
+            cost += float(info["cost"])
         amp = float(info["whirl_amplitude"])
         max_amp = max(max_amp, amp if math.isfinite(amp) else 0.0)
         if record_path:
@@ -197,6 +278,8 @@ def run_episode(
         stable,
         max_amp,
         touchdown,
+        cost if has_cost else math.nan,
+        dmove / steps,
         lams if record_path else [],
         dws if record_path else [],
         amps if record_path else [],
@@ -248,4 +331,11 @@ def summarise(results: list[EpisodeResult]) -> dict[str, float]:
         "max_whirl_amplitude": float(np.mean([r.max_whirl_amplitude for r in results])) if n else math.nan,
         "touchdowns": int(sum(r.touchdown for r in results)),
         "mean_steps": float(np.mean([r.steps for r in results])) if n else math.nan,
+        "mean_cost": _nanmean([r.episode_cost for r in results]),
+        "mean_damping_change": _nanmean([r.damping_command_change for r in results]),
     }
+
+
+def _nanmean(x: list[float]) -> float:
+    a = np.asarray(x, dtype=np.float64)
+    return float(a.mean()) if a.size and np.isfinite(a).all() else math.nan

@@ -1,0 +1,350 @@
+"""The benchmark's ladder of agents: naive, rules, oracle, learned -- one registry, one owner.
+
+Every agent of the benchmark is an :class:`AgentEntry`: a name, a kind (``naive`` | ``rule`` |
+``oracle`` | ``learned``), the task ids it applies to and a factory.  The benchmark
+(``python -m gfb_experiments.benchmark_agents``) runs, for each task, *every* entry that applies to it on
+the same seeds, and normalises each episode's return with the same seed's naive and oracle returns
+(``gfb_experiments.benchmark_stats.normalized_scores``): 0 = naive, 1 = oracle.  So every task needs
+exactly one ``naive`` and one ``oracle`` entry.
+
+Registering an agent (the interface for the v1 oracle, the rules and the learned agents)::
+
+    from gfb_agents.ladder import AgentEntry, register, V1_TASKS
+    # make_oracle(env) -> Policy
+    register(AgentEntry("oracle", "oracle", V1_TASKS, make_oracle), replace=True)
+    register(AgentEntry("identify_shock", "rule", ("gfb_env/RunUpRandomized-v1",), make_rule))
+    register_learned("runs/RunUpRandomized-v1_sac", name="sac")   # a gfb_agents.train output (seed*/)
+
+A factory is called as ``factory(env)`` with a fresh env of the task (``gymnasium.make(task,
+**env_kwargs)``, not reset) and returns a :class:`~gfb_agents.scripted.Policy`; it must read only the env's
+documented configuration (except an oracle's, which may also take the reset ``info`` through
+``observe_reset_info``).  Factories and entries must be picklable (module-level functions or
+``functools.partial`` of them): the evaluation sweep builds the agents in its worker processes.
+
+A learned entry has one run per independent training seed (``run_paths``); the benchmark plays every run
+on the same test seeds and the statistics stratify by run.
+
+The built-in ladder (:func:`default_ladder`): on every task the naive ramp (:class:`NaiveRampAgent`), the
+scripted rules of :mod:`gfb_agents.scripted` and ``identify_map`` of :mod:`gfb_agents.identify` as rules,
+:class:`~gfb_agents.identify.OracleAgent` as the oracle (on the v1 tasks a *placeholder* until the v1
+oracle of ``gfb_agents.oracle`` is registered), and the committed learned policies of their task.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from gfb_agents.nominal_map import NominalMap
+from gfb_agents.scripted import ControlSpec, Policy, ScriptedPolicy, make_scripted_agents
+
+__all__ = [
+    "KINDS",
+    "AgentEntry",
+    "NaiveRampAgent",
+    "register",
+    "unregister",
+    "register_learned",
+    "learned_entries",
+    "ladder_for",
+    "naive_for",
+    "oracle_for",
+    "default_ladder",
+    "LADDER",
+    "V0_TASKS",
+    "V1_TASKS",
+    "NAIVE_DAMPING",
+    "NAIVE_MARGIN",
+]
+
+KINDS = ("naive", "rule", "oracle", "learned")
+
+try:  # the task lists have one owner
+    from gfb_env.envs import ENV_IDS, V0_IDS
+
+    V0_TASKS: tuple[str, ...] = tuple(V0_IDS)
+    V1_TASKS: tuple[str, ...] = tuple(t for t in ENV_IDS if t not in V0_IDS)
+except ImportError:  # pragma: no cover - gfb_env is a dependency
+    V0_TASKS, V1_TASKS = (), ()
+
+
+@dataclass(frozen=True)
+class AgentEntry:
+    """One rung of the ladder.
+
+    Attributes:
+        name: unique name (the table's ``agent`` column).
+        kind: ``"naive"``, ``"rule"``, ``"oracle"`` or ``"learned"``.
+        tasks: the task ids it applies to.
+        factory: ``factory(env) -> Policy`` (None for a learned entry, which loads ``run_paths``).
+        run_paths: learned entries only: one trained model per independent training seed (a directory
+            :class:`~gfb_agents.evaluate.LearnedPolicy` reads: its ``best/`` model, selected on the
+            validation seeds, where present).
+        description: one line for the docs.
+    """
+
+    name: str
+    kind: str
+    tasks: tuple[str, ...]
+    factory: Callable[..., Policy] | None = None
+    run_paths: tuple[str, ...] = ()
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name or "|" in self.name or "/" in self.name:
+            raise ValueError(f"agent name must be a non-empty string without '|' or '/', got {self.name!r}")
+        if self.kind not in KINDS:
+            raise ValueError(f"kind of {self.name!r} must be one of {KINDS}, got {self.kind!r}")
+        object.__setattr__(self, "tasks", tuple(self.tasks))
+        object.__setattr__(self, "run_paths", tuple(str(p) for p in self.run_paths))
+        if not self.tasks:
+            raise ValueError(f"agent {self.name!r} applies to no task")
+        if self.kind == "learned":
+            if not self.run_paths:
+                raise ValueError(f"learned agent {self.name!r} needs run_paths (one per training seed)")
+        elif self.factory is None or not callable(self.factory):
+            raise ValueError(f"agent {self.name!r} needs a factory(env) -> Policy")
+
+    @property
+    def runs(self) -> int:
+        """Independent training seeds (1 for a naive, rule or oracle agent)."""
+        return len(self.run_paths) if self.kind == "learned" else 1
+
+    def build(self, env, run: int = 0) -> Policy:
+        """The policy of run ``run`` for ``env`` (a fresh env of one of :attr:`tasks`)."""
+        if not 0 <= run < self.runs:
+            raise ValueError(f"agent {self.name!r} has {self.runs} run(s), asked for run {run}")
+        if self.kind == "learned":
+            from gfb_agents.evaluate import LearnedPolicy
+
+            pol: Policy = LearnedPolicy(self.run_paths[run], name=self.name)
+        else:
+            pol = self.factory(env)
+        pol.name = self.name
+        return pol
+
+
+class NaiveRampAgent(ScriptedPolicy):
+    """``naive``: the paper's constant-damping ramp (0 of the normalised scale).
+
+    Commands ``D_W = damping`` (1, the paper's Fig. 5 value) throughout and ramps at the motor limit
+    toward ``min(commanded speed, (1 - margin) Lambda_c(D_W) of the nominal bearing)``, then holds.  The
+    commanded speed is read from the observation where the task publishes one
+    (``env.observation_layout.speed_command_rpm(obs)``, the v1 redefinition), else the task's documented
+    nominal target (``ControlSpec.target_rpm``).  It reads nothing else: no whirl feedback, no
+    identification -- what a user who knows only the paper's map of the nominal bearing would do.
+    """
+
+    def __init__(
+        self,
+        spec: ControlSpec,
+        nmap: NominalMap,
+        damping: float = 1.0,
+        margin: float = 0.05,
+        name: str = "naive",
+    ):
+        super().__init__(name, spec)
+        if not 0 <= margin < 0.5:
+            raise ValueError(f"margin must lie in [0, 0.5), got {margin!r}")
+        self.damping = float(damping)
+        self.cap_rpm = float(nmap.rpm((1.0 - margin) * nmap.critical_at(self.damping)))
+        self._command = getattr(spec.observations, "speed_command_rpm", None)
+
+    def setpoint_rpm(self, obs: np.ndarray) -> float:
+        cmd = float(self._command(obs)) if self._command is not None else self.spec.target_rpm
+        return min(cmd, self.cap_rpm) if math.isfinite(cmd) else self.cap_rpm
+
+    def _act(self, obs, rpm, m):
+        return [self.track(m, rpm, self.setpoint_rpm(obs)), self.spec.damping_action(self.damping)]
+
+
+#: the naive agent's damping and margin below Lambda_c(D_W) of the nominal bearing (issue 11)
+NAIVE_DAMPING = 1.0
+NAIVE_MARGIN = 0.05
+
+
+def make_naive(env) -> NaiveRampAgent:
+    """The naive ramp for ``env`` (:class:`NaiveRampAgent` with D_W = 1 and a 5 % margin)."""
+    nmap = NominalMap.from_env(env)
+    return NaiveRampAgent(ControlSpec.from_env(env, nmap), nmap, NAIVE_DAMPING, NAIVE_MARGIN)
+
+
+def make_scripted(name: str, env) -> Policy:
+    """The scripted baseline ``name`` of :func:`gfb_agents.scripted.make_scripted_agents`."""
+    agents = make_scripted_agents(env)
+    if name not in agents:
+        raise LookupError(f"no scripted agent {name!r} for this task; known: {sorted(agents)}")
+    return agents[name]
+
+
+def make_identify_map(env) -> Policy:
+    from gfb_agents.identify import IdentifyingAgent
+
+    return IdentifyingAgent(env)
+
+
+def make_schedule_oracle(env) -> Policy:
+    from gfb_agents.identify import OracleAgent
+
+    return OracleAgent(env)
+
+
+#: the registry: name -> entry (use :func:`register`; :func:`default_ladder` fills it on first use)
+LADDER: dict[str, AgentEntry] = {}
+_DEFAULTS_LOADED = False
+
+#: the v0 table's scripted rules (kept so that table stays reproducible)
+_V0_RULES = (
+    ("paper_ramp_D0.3", "the paper's ramp at half the motor limit to the nominal target, D_W = 0.3"),
+    ("paper_ramp_D1", "the same at D_W = 1"),
+    ("paper_ramp_D3", "the same at D_W = 3"),
+    ("paper_ramp_D10", "the same at D_W = 10"),
+    ("map_informed", "d_opt of the nominal map, motor limit, hold at 0.95 Lambda_c(d_opt)"),
+    ("feedback", "map_informed plus whirl detection, back-off and return"),
+    ("damping_search", "probe the whirl onset at three dampings, run at the best"),
+)
+
+
+def register(entry: AgentEntry, replace: bool = False) -> AgentEntry:
+    """Add ``entry`` to the ladder (ValueError if the name is taken, unless ``replace``)."""
+    _ensure_defaults()
+    if entry.name in LADDER and not replace:
+        raise ValueError(f"agent {entry.name!r} is already registered (pass replace=True)")
+    LADDER[entry.name] = entry
+    return entry
+
+
+def unregister(name: str) -> None:
+    _ensure_defaults()
+    LADDER.pop(name, None)
+
+
+def default_ladder() -> dict[str, AgentEntry]:
+    """The built-in entries (module docstring), by name; learned ones from the committed policies."""
+    all_tasks = V0_TASKS + V1_TASKS
+    out = [
+        AgentEntry("naive", "naive", all_tasks, make_naive, description="D_W = 1, motor limit, hold"),
+    ]
+    for name, desc in _V0_RULES:
+        out.append(
+            AgentEntry(name, "rule", all_tasks, functools.partial(make_scripted, name), description=desc)
+        )
+    out.append(
+        AgentEntry(
+            "identify_map", "rule", all_tasks, make_identify_map, description="fit the bearing, fly the table"
+        )
+    )
+    out.append(
+        AgentEntry(
+            "oracle",
+            "oracle",
+            all_tasks,
+            make_schedule_oracle,
+            description="identify_map's schedule on the true draw (v1: placeholder for gfb_agents.oracle)",
+        )
+    )
+    try:
+        from gfb_agents.evaluate import POLICIES_DIR
+
+        out += learned_entries(POLICIES_DIR)
+    except FileNotFoundError:  # a broken install: the benchmark refuses to run without them
+        pass
+    return {e.name: e for e in out}
+
+
+def _ensure_defaults() -> None:
+    global _DEFAULTS_LOADED
+    if not _DEFAULTS_LOADED:
+        _DEFAULTS_LOADED = True
+        for k, v in default_ladder().items():
+            LADDER.setdefault(k, v)
+
+
+def _run_dirs(d: Path) -> list[Path]:
+    """Model directories of a learned agent: ``d`` itself (``model.zip``) or its ``seed*/`` / ``run*/``
+    subfolders with a model (``model.zip`` or ``best/model.zip``), sorted."""
+    if (d / "model.zip").exists():
+        return [d]
+    subs = [
+        s
+        for s in sorted(d.iterdir())
+        if s.is_dir() and ((s / "model.zip").exists() or (s / "best" / "model.zip").exists())
+    ]
+    return subs
+
+
+def _meta_env_id(run_dir: Path) -> str | None:
+    import json
+
+    for p in (run_dir / "run.json", run_dir / "policy.json"):
+        if p.exists():
+            return json.loads(p.read_text()).get("env_id")
+    return None
+
+
+def learned_entries(root: str | Path) -> list[AgentEntry]:
+    """A learned entry per folder of ``root`` (the name is the folder's; the task from its ``run.json``
+    or ``policy.json``).  A folder is one agent: either one model (``model.zip``) or one model per
+    training seed (``seed*/`` subfolders, as ``gfb_agents.train --seeds`` writes them)."""
+    root = Path(root)
+    if not root.is_dir():
+        raise FileNotFoundError(f"no policies folder {root}")
+    out = []
+    for d in sorted(root.iterdir()):
+        if not d.is_dir():
+            continue
+        runs = _run_dirs(d)
+        if runs:
+            env_id = _meta_env_id(runs[0])
+            if env_id is None:
+                raise ValueError(f"{runs[0]} has no run.json/policy.json naming its env_id")
+            out.append(AgentEntry(d.name, "learned", (env_id,), run_paths=tuple(str(r) for r in runs)))
+    return out
+
+
+def register_learned(path: str | Path, name: str | None = None, replace: bool = True) -> AgentEntry:
+    """Register the learned agent in ``path`` (one model, or one per training seed in ``seed*/``)."""
+    p = Path(path)
+    runs = _run_dirs(p) if p.is_dir() else []
+    if not runs:
+        raise FileNotFoundError(f"no trained model (model.zip or seed*/model.zip) in {p}")
+    env_id = _meta_env_id(runs[0])
+    if env_id is None:
+        raise ValueError(f"{runs[0]} has no run.json naming its env_id")
+    return register(
+        AgentEntry(name or p.name, "learned", (env_id,), run_paths=tuple(str(r) for r in runs)),
+        replace=replace,
+    )
+
+
+def ladder_for(task: str, names: Iterable[str] | None = None) -> list[AgentEntry]:
+    """The entries that apply to ``task`` (all, or those in ``names``), in ladder order: naive, rules,
+    oracle, learned."""
+    _ensure_defaults()
+    want = set(names) if names is not None else None
+    sel = [e for e in LADDER.values() if task in e.tasks and (want is None or e.name in want)]
+    return sorted(sel, key=lambda e: KINDS.index(e.kind))
+
+
+def _unique(task: str, kind: str) -> AgentEntry | None:
+    sel = [e for e in ladder_for(task) if e.kind == kind]
+    if len(sel) > 1:
+        raise ValueError(
+            f"task {task} has {len(sel)} {kind} agents ({[e.name for e in sel]}); one is allowed"
+        )
+    return sel[0] if sel else None
+
+
+def naive_for(task: str) -> AgentEntry | None:
+    """The one naive entry of ``task`` (None if none is registered)."""
+    return _unique(task, "naive")
+
+
+def oracle_for(task: str) -> AgentEntry | None:
+    """The one oracle entry of ``task`` (None if none is registered)."""
+    return _unique(task, "oracle")

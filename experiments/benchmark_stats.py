@@ -1,0 +1,204 @@
+"""Statistics of the agent benchmark: per-episode normalisation and rliable's interval estimates.
+
+* :func:`normalized_scores`: ``s = (R - R_naive) / (R_oracle - R_naive)`` per episode, with the naive and
+  oracle returns of the *same seed* (0 = naive, 1 = oracle).  Guard: where the oracle's margin over the
+  naive on a seed, ``gap = R_oracle - R_naive``, is below ``GAP_FLOOR_FRACTION`` (10 %) of the task's
+  median gap, the denominator is floored at that value (the seed is counted in ``floored_seeds``): a seed
+  on which naive and oracle happen to tie would otherwise divide by ~0 and one episode would swamp the
+  mean.  On a floored seed the oracle itself scores ``gap / floor`` (< 1, or < 0 where it lost to the
+  naive) -- it is not forced to 1.  If the median gap itself is not positive (the oracle does not beat
+  the naive on the typical seed) the task has no scale: every score is NaN and ``no_headroom`` is set.
+* :func:`interval_estimates`: IQM (and mean) of a score matrix with stratified-bootstrap 95 % CIs from
+  rliable (``rly.get_interval_estimates``).  The matrix is ``runs x episodes`` (one row per independent
+  training seed; rules, naive and oracle have one row).  It goes to rliable transposed, as its
+  ``(num_runs, num_tasks)`` = ``(episodes, runs)``: episodes are resampled *within* each training seed
+  (the strata), and with two or more training seeds also the seeds themselves (rliable's
+  ``task_bootstrap=True``), so the interval of a learned agent includes the seed-to-seed spread.
+* :func:`performance_profile_png`: rliable's score-distribution performance profile of every agent of a
+  task (fraction of episodes with normalised score > tau), with bootstrap bands.
+
+The bootstrap is seeded (:data:`gfb_agents.seeds.BOOTSTRAP_SEED`): the same scores give the same CIs.
+rliable draws its indices from NumPy's global generator; it is seeded for the call and restored after.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from pathlib import Path
+
+import numpy as np
+
+from gfb_agents.seeds import BOOTSTRAP_SEED
+
+__all__ = [
+    "GAP_FLOOR_FRACTION",
+    "DEFAULT_REPS",
+    "normalized_scores",
+    "iqm",
+    "interval_estimates",
+    "performance_profile_png",
+]
+
+#: a seed's oracle-naive gap is floored at this fraction of the task's median gap
+GAP_FLOOR_FRACTION = 0.1
+#: bootstrap replications (rliable's default is 50 000; 10 000 keeps the 2.5 % quantile to ~0.1 % of its
+#: spread and a table of ~50 rows to seconds)
+DEFAULT_REPS = 10_000
+
+
+def normalized_scores(
+    returns: np.ndarray, naive: np.ndarray, oracle: np.ndarray, floor_fraction: float = GAP_FLOOR_FRACTION
+) -> tuple[np.ndarray, dict]:
+    """Per-episode normalised scores of ``returns`` (shape ``(runs, episodes)`` or ``(episodes,)``) against
+    the naive and oracle returns of the same seeds (shape ``(episodes,)``).
+
+    Returns ``(scores, info)`` with ``scores`` of the shape of ``returns`` and ``info`` =
+    ``{"median_gap", "floor", "floored_seeds", "no_headroom"}`` (module docstring)."""
+    r = np.asarray(returns, dtype=np.float64)
+    n = np.asarray(naive, dtype=np.float64)
+    o = np.asarray(oracle, dtype=np.float64)
+    if n.ndim != 1 or n.shape != o.shape:
+        raise ValueError(f"naive and oracle returns must be 1-D of one length, got {n.shape} and {o.shape}")
+    if r.shape[-1] != n.shape[0]:
+        raise ValueError(f"returns have {r.shape[-1]} episodes, naive/oracle {n.shape[0]}")
+    if not 0 <= floor_fraction < 1:
+        raise ValueError(f"floor_fraction must lie in [0, 1), got {floor_fraction!r}")
+    gap = o - n
+    med = float(np.median(gap)) if gap.size else math.nan
+    if not (math.isfinite(med) and med > 0):
+        return np.full(r.shape, math.nan), {
+            "median_gap": med,
+            "floor": math.nan,
+            "floored_seeds": 0,
+            "no_headroom": True,
+        }
+    floor = floor_fraction * med
+    denom = np.maximum(gap, floor)
+    scores = (r - n) / denom
+    return scores, {
+        "median_gap": med,
+        "floor": floor,
+        "floored_seeds": int(np.sum(gap < floor)),
+        "no_headroom": False,
+    }
+
+
+def iqm(scores: np.ndarray) -> float:
+    """Interquartile mean of all entries (rliable's ``metrics.aggregate_iqm``: 25 % trimmed mean)."""
+    from rliable import metrics
+
+    return float(metrics.aggregate_iqm(np.asarray(scores, dtype=np.float64)))
+
+
+@contextlib.contextmanager
+def _seeded_global_rng(seed: int):
+    # rliable 1.2 draws from the legacy global generator (np.random.choice), so that is what to seed
+    state = np.random.get_state()  # noqa: NPY002
+    np.random.seed(seed)  # noqa: NPY002
+    try:
+        yield
+    finally:
+        np.random.set_state(state)  # noqa: NPY002
+
+
+def interval_estimates(
+    scores: np.ndarray,
+    reps: int = DEFAULT_REPS,
+    confidence: float = 0.95,
+    seed: int = BOOTSTRAP_SEED,
+) -> dict[str, float]:
+    """IQM and mean of ``scores`` (``(runs, episodes)``, or ``(episodes,)`` for one run) with rliable's
+    stratified-bootstrap percentile CIs (module docstring: strata = runs; runs resampled too when >= 2).
+
+    Returns ``{"iqm", "iqm_low", "iqm_high", "mean", "mean_low", "mean_high"}``; all NaN if any score
+    is not finite (a task without headroom)."""
+    from rliable import library as rly
+    from rliable import metrics
+
+    s = np.asarray(scores, dtype=np.float64)
+    if s.ndim == 1:
+        s = s[None, :]
+    if s.ndim != 2 or s.size == 0:
+        raise ValueError(f"scores must be a non-empty (runs, episodes) matrix, got shape {s.shape}")
+    if isinstance(reps, bool) or not isinstance(reps, int) or reps < 100:
+        raise ValueError(f"reps must be an integer >= 100, got {reps!r}")
+    keys = ("iqm", "iqm_low", "iqm_high", "mean", "mean_low", "mean_high")
+    if not np.isfinite(s).all():
+        return dict.fromkeys(keys, math.nan)
+    mat = s.T  # rliable's (num_runs, num_tasks): here (episodes, training runs)
+
+    def agg(x: np.ndarray) -> np.ndarray:
+        return np.array([metrics.aggregate_iqm(x), metrics.aggregate_mean(x)])
+
+    if mat.shape[0] == 1:  # one episode: no spread to resample
+        p = agg(mat)
+        return dict(zip(keys, (p[0], p[0], p[0], p[1], p[1], p[1]), strict=True))
+    with _seeded_global_rng(seed):
+        point, ci = rly.get_interval_estimates(
+            {"a": mat},
+            agg,
+            reps=reps,
+            confidence_interval_size=confidence,
+            task_bootstrap=mat.shape[1] >= 2,
+        )
+    p, c = point["a"], ci["a"]
+    return {
+        "iqm": float(p[0]),
+        "iqm_low": float(c[0, 0]),
+        "iqm_high": float(c[1, 0]),
+        "mean": float(p[1]),
+        "mean_low": float(c[0, 1]),
+        "mean_high": float(c[1, 1]),
+    }
+
+
+def performance_profile_png(
+    score_dict: dict[str, np.ndarray],
+    path: str | Path,
+    title: str = "",
+    reps: int = 2_000,
+    seed: int = BOOTSTRAP_SEED,
+) -> Path | None:
+    """rliable's performance profile (fraction of episodes with normalised score > tau, with 95 % bootstrap
+    bands) of every agent in ``score_dict`` (name -> ``(runs, episodes)``) as a PNG.  Agents with
+    non-finite scores are left out; None (and no file) if none is left."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from rliable import library as rly
+    from rliable import plot_utils
+
+    data = {
+        k: np.atleast_2d(np.asarray(v, dtype=np.float64)).T
+        for k, v in score_dict.items()
+        if np.size(v) and np.isfinite(v).all()
+    }
+    if not data:
+        return None
+    lo = min(float(v.min()) for v in data.values())
+    hi = max(float(v.max()) for v in data.values())
+    lo, hi = min(lo, 0.0), max(hi, 1.0)
+    taus = np.linspace(lo, hi, 101)
+    with _seeded_global_rng(seed):
+        profiles, cis = rly.create_performance_profile(data, taus, reps=reps)
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    plot_utils.plot_performance_profiles(
+        profiles,
+        taus,
+        performance_profile_cis=cis,
+        ax=ax,
+        xlabel=r"normalised score $\tau$ (0 = naive, 1 = oracle)",
+        ylabel=r"fraction of episodes with score $> \tau$",
+        labelsize="medium",
+        ticklabelsize="small",
+    )
+    ax.axvline(0.0, color="0.6", lw=0.8, ls=":")
+    ax.axvline(1.0, color="0.6", lw=0.8, ls=":")
+    ax.legend(fontsize=7, loc="lower left")
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)

@@ -1,0 +1,123 @@
+"""The benchmark's method: seed splits, the ladder registry, per-episode normalisation and the rliable
+statistics (on synthetic score matrices with known answers)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from gfb_agents import seeds
+from gfb_experiments.benchmark_stats import interval_estimates, iqm, normalized_scores
+
+
+# ------------------------------------------------------------------------------------------ seeds
+def test_seed_splits_are_disjoint_and_documented():
+    ranges = [seeds.TRAIN, seeds.VALIDATION, seeds.TEST, seeds.LEGACY_V0, seeds.DEV]
+    for a, b in itertools.combinations(ranges, 2):
+        assert not a.overlaps(b), (a, b)
+        assert not set(range(a.start, min(a.stop, a.start + 1000))) & set(
+            range(b.start, min(b.stop, b.start + 1000))
+        )
+    assert len(seeds.TEST) >= seeds.MIN_TEST_EPISODES
+    # the seeds used earlier in the project are not test or validation seeds
+    for s in [*range(150), *range(10_000, 10_050), *range(20_000, 20_020)]:
+        assert s not in seeds.TEST and s not in seeds.VALIDATION and s not in seeds.TRAIN
+    assert seeds.split_seeds("test", 3) == [seeds.TEST.start, seeds.TEST.start + 1, seeds.TEST.start + 2]
+    with pytest.raises(ValueError, match="split"):
+        seeds.split_seeds("train", 3)  # training seeds never go to the benchmark
+    with pytest.raises(ValueError, match="legacy_v0"):
+        seeds.split_seeds("legacy_v0", 51)
+
+
+def test_training_env_seeds_stay_in_train_and_never_repeat():
+    got = {
+        seeds.train_env_seed(r, i, k)
+        for r in (0, 1, seeds.MAX_TRAIN_RUNS - 1)
+        for i in (0, 1, seeds.MAX_TRAIN_ENVS - 1)
+        for k in (0, 1, seeds.MAX_TRAIN_SESSIONS - 1)
+    }
+    assert len(got) == 27 and all(s in seeds.TRAIN for s in got)
+    with pytest.raises(ValueError, match="env_index"):
+        seeds.train_env_seed(0, seeds.MAX_TRAIN_ENVS)
+    with pytest.raises(ValueError, match="run"):
+        seeds.train_env_seed(-1, 0)
+
+
+# ---------------------------------------------------------------------------------- normalisation
+def test_normalisation_is_exact_on_constructed_returns():
+    naive = np.array([10.0, -5.0, 0.0, 3.0])
+    oracle = np.array([50.0, 15.0, 40.0, 13.0])
+    # an agent at given fractions of each seed's own gap
+    frac = np.array([[0.0, 0.5, 1.0, -0.25], [0.3, 0.3, 0.3, 0.3]])
+    ret = naive + frac * (oracle - naive)
+    s, info = normalized_scores(ret, naive, oracle)
+    np.testing.assert_allclose(s, frac, rtol=0, atol=1e-12)
+    assert info["floored_seeds"] == 0 and not info["no_headroom"]
+    s_n, _ = normalized_scores(naive, naive, oracle)
+    s_o, _ = normalized_scores(oracle, naive, oracle)
+    np.testing.assert_array_equal(s_n, 0.0)
+    np.testing.assert_allclose(s_o, 1.0)
+
+
+def test_normalisation_floors_a_vanishing_gap_and_flags_no_headroom():
+    naive = np.array([0.0, 0.0, 0.0, 0.0, 0.0])
+    oracle = np.array([10.0, 10.0, 10.0, 10.0, 0.001])  # the last seed: a tie
+    s, info = normalized_scores(np.array([5.0, 5.0, 5.0, 5.0, 0.5]), naive, oracle)
+    assert info["median_gap"] == 10.0 and info["floor"] == pytest.approx(1.0) and info["floored_seeds"] == 1
+    np.testing.assert_allclose(s, [0.5, 0.5, 0.5, 0.5, 0.5])  # 0.5 / floor 1.0, not 0.5 / 0.001
+    s, info = normalized_scores(np.array([1.0, 2.0]), np.array([5.0, 5.0]), np.array([4.0, 5.0]))
+    assert info["no_headroom"] and np.isnan(s).all()
+    with pytest.raises(ValueError, match="episodes"):
+        normalized_scores(np.zeros(3), np.zeros(4), np.ones(4))
+
+
+# ------------------------------------------------------------------------------------- statistics
+def test_iqm_of_a_known_matrix():
+    # 8 values: the IQM drops the lowest and highest two and averages the middle four
+    x = np.array([[-100.0, 0.0, 1.0, 2.0], [3.0, 4.0, 5.0, 100.0]])
+    assert iqm(x) == pytest.approx(np.mean([1.0, 2.0, 3.0, 4.0]))
+    est = interval_estimates(x, reps=2000)
+    assert est["iqm"] == pytest.approx(2.5) and est["mean"] == pytest.approx(np.mean(x))
+    assert est["iqm_low"] <= est["iqm"] <= est["iqm_high"]
+
+
+def test_bootstrap_ci_covers_the_truth_and_is_reproducible():
+    """Normal scores with known mean: the 95 % CI of the IQM (= the mean of a symmetric law) holds the
+    truth in about 95 % of independent synthetic benchmarks, and shrinks with more episodes."""
+    rng = np.random.default_rng(7)
+    truth, hits, widths = 0.4, 0, []
+    for _ in range(40):
+        x = truth + 0.3 * rng.standard_normal((1, 100))
+        est = interval_estimates(x, reps=1000)
+        hits += est["iqm_low"] <= truth <= est["iqm_high"]
+        widths.append(est["iqm_high"] - est["iqm_low"])
+    assert hits >= 34  # P(X >= 34 | Bin(40, 0.95)) > 0.99
+    wide = interval_estimates(truth + 0.3 * rng.standard_normal((1, 25)), reps=1000)
+    assert wide["iqm_high"] - wide["iqm_low"] > np.mean(widths)
+    x = truth + 0.3 * rng.standard_normal((1, 100))
+    assert interval_estimates(x, reps=500) == interval_estimates(x, reps=500)  # seeded
+
+
+def test_bootstrap_over_training_seeds_includes_their_spread():
+    """Five training seeds whose means differ: resampling the seeds widens the interval beyond the
+    within-seed (episode) bootstrap; a seed-level shift is not hidden by many episodes."""
+    rng = np.random.default_rng(3)
+    seed_means = np.array([0.0, 0.2, 0.4, 0.6, 0.8])
+    x = seed_means[:, None] + 0.05 * rng.standard_normal((5, 200))
+    est = interval_estimates(x, reps=2000)
+    assert est["mean"] == pytest.approx(x.mean())
+    assert est["mean_high"] - est["mean_low"] > 0.2  # seed spread (~0.28 / sqrt 5 x 2 x 1.96 ~ 0.5)
+    one = interval_estimates(x[2], reps=2000)
+    assert one["mean_high"] - one["mean_low"] < 0.05
+
+
+def test_statistics_refuse_bad_input_and_pass_nan_through():
+    with pytest.raises(ValueError, match="reps"):
+        interval_estimates(np.zeros((1, 5)), reps=10)
+    with pytest.raises(ValueError, match="scores"):
+        interval_estimates(np.zeros((0, 0)))
+    est = interval_estimates(np.array([[0.1, math.nan, 0.3]]))
+    assert all(math.isnan(v) for v in est.values())

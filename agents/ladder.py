@@ -32,6 +32,7 @@ oracle of ``gfb_agents.oracle`` is registered), and the committed learned polici
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 from collections.abc import Callable, Iterable
@@ -49,6 +50,8 @@ __all__ = [
     "NaiveRampAgent",
     "register",
     "unregister",
+    "registered",
+    "scoped",
     "register_learned",
     "learned_entries",
     "ladder_for",
@@ -222,6 +225,25 @@ def register(entry: AgentEntry, replace: bool = False) -> AgentEntry:
 def unregister(name: str) -> None:
     _ensure_defaults()
     LADDER.pop(name, None)
+
+
+def registered() -> dict[str, AgentEntry]:
+    """The ladder now (a copy), by name."""
+    _ensure_defaults()
+    return dict(LADDER)
+
+
+@contextlib.contextmanager
+def scoped():
+    """Changes to the ladder inside the ``with`` block are undone after it (a benchmark run registers
+    its learned agents without leaking them into the caller's ladder)."""
+    _ensure_defaults()
+    saved = dict(LADDER)
+    try:
+        yield
+    finally:
+        LADDER.clear()
+        LADDER.update(saved)
 
 
 def default_ladder() -> dict[str, AgentEntry]:

@@ -1,24 +1,45 @@
-"""Run-up benchmark: every scripted baseline and every committed learned policy on every task.
+"""Agent benchmark: the whole ladder (naive, rules, oracle, learned) of every task on the same seeds.
 
-    python -m gfb_experiments.benchmark_agents [--episodes 50] [--quick] [--tasks ID,ID] [--agents NAME,NAME]
-                                           [--out results] [--n-jobs 1] [--policies DIR | --no-learned]
+    python -m gfb_experiments.benchmark_agents [--split test] [--episodes 100] [--tasks ID,ID]
+        [--agents NAME,NAME] [--out results] [--n-jobs N | --scheduler ADDRESS] [--chunk 10]
+        [--policies DIR | --no-learned] [--learned DIR ...] [--env-kwargs JSON] [--reps N] [--merge]
+        [--quick]
 
-Each (task, agent) pair plays the same fixed, seeded episodes (seeds ``10000, 10001, ...``; the env is
-reset with the seed, the policy is deterministic), and the results are reduced to one row
-(:func:`gfb_agents.evaluate.summarise`).  Writes ``<out>/benchmark_agents.csv``, ``<out>/benchmark_agents.md``
-(the Markdown table) and ``<out>/benchmark_agents_paths.png`` (each agent's first episode as a path in the
-(Lambda, D_W) plane over the stable / bistable / whirl regions of the nominal bearing's map; the paths are
-also kept in ``benchmark_agents_paths.json``).  ``--quick`` plays one episode per pair (for tests);
-``--merge`` replaces/adds the (task, agent) rows of this run in an existing table; ``--env-kwargs`` passes
-``gymnasium.make`` arguments per task.  Learned policies that are expected but missing (no folder, or no
-``<name>/model.zip`` in it) end the run at once with exit code 2; ``--no-learned`` runs without them.
+Method (``docs/agents.md``, "The benchmark's method"):
+
+* Seeds come from :mod:`gfb_agents.seeds`: ``--split test`` (default; the first ``--episodes`` seeds of
+  the test range, for the final table only), ``validation`` (model selection, rule tuning) or
+  ``legacy_v0`` (seeds 10000..10049, the v0 table of 2026-11: ``--split legacy_v0 --episodes 50
+  --tasks <v0 ids>`` replays it).
+* The agents come from the ladder (:mod:`gfb_agents.ladder`): every entry that applies to a task plays the
+  same seeds; a learned entry plays them once per training seed.  The naive and oracle entries of a task
+  always run (they define the normalised score, :mod:`gfb_experiments.benchmark_stats`).
+* The sweep runs (task, agent, run, chunk of ``--chunk`` seeds) jobs with joblib (``--n-jobs``) or on a
+  Dask cluster (``--scheduler tcp://host:8786``: the workers need this package and the learned models at
+  the same paths).  Each finished chunk is stored at once as a small JSON file under
+  ``<out>/benchmark_cache/<split>/``; a rerun skips the chunks whose key (task, agent, kind, run, seeds,
+  env kwargs, the learned model's bytes) matches, so an interrupted sweep resumes.  After changing an
+  agent's or the env's code, delete the cache folder (or pass ``--fresh``).
+
+Writes ``<out>/benchmark_agents.csv`` (one row per (task, agent); columns :data:`COLUMNS`),
+``benchmark_agents.json`` (the rows, the normalisation per task, every episode's return and normalised
+score, the seeds and the command), ``benchmark_agents.md`` (the Markdown table),
+``benchmark_agents_profile_<Task>.png`` (rliable performance profile per task) and
+``benchmark_agents_paths.png`` (each agent's first episode in the (Lambda, D_W) plane over the nominal
+map; the paths also in ``benchmark_agents_paths.json``).  ``--merge`` keeps the rows of other (task,
+agent) pairs of an existing table.  Learned policies that are expected but missing (no folder, or none
+in it) end the run at once with exit code 2; ``--no-learned`` runs without them.
 """
 
 from __future__ import annotations
 
 import csv
+import dataclasses
+import hashlib
 import json
 import math
+import os
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -26,136 +47,338 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from gfb_agents.evaluate import (
-    POLICIES_DIR,
-    EpisodeResult,
-    LearnedPolicy,
-    evaluate,
-    load_learned_policies,
-    summarise,
-)
-from gfb_agents.identify import IdentifyingAgent, OracleAgent
+from gfb_agents import ladder as ladder_mod
+from gfb_agents.evaluate import POLICIES_DIR, EpisodeResult, run_episode, summarise
+from gfb_agents.ladder import AgentEntry, ladder_for, learned_entries, naive_for, oracle_for
 from gfb_agents.nominal_map import NominalMap
-from gfb_agents.scripted import Policy, make_scripted_agents
+from gfb_agents.seeds import MIN_TEST_EPISODES, SPLITS, split_seeds
 from gfb_env import jsonio
 from gfb_env._cli_common import OneLineParser, check_output_dir
-from gfb_env.envs import V0_IDS
+from gfb_env.envs import ENV_IDS
+from gfb_experiments.benchmark_stats import (
+    DEFAULT_REPS,
+    interval_estimates,
+    normalized_scores,
+    performance_profile_png,
+)
 
-TASKS = V0_IDS  # the task list has one owner; the v1 tasks join the rebuilt benchmark (issue 11)
-SEED0 = 10_000
+TASKS = ENV_IDS  # the task list has one owner
 COLUMNS = [
     "task",
     "agent",
     "kind",
+    "split",
     "episodes",
+    "training_seeds",
     "success_rate",
     "mean_return",
     "return_ci95",
+    "return_ci_low",
+    "return_ci_high",
+    "normalized_score",
+    "normalized_iqm",
+    "normalized_ci_low",
+    "normalized_ci_high",
+    "touchdowns",
+    "mean_cost",
+    "mean_damping_change",
     "time_to_target_s",
     "final_speed_rpm",
     "final_stable_rate",
     "max_whirl_amplitude",
-    "touchdowns",
     "mean_steps",
+    "floored_seeds",
     "wall_s",
 ]
+_INT_COLUMNS = ("episodes", "training_seeds", "touchdowns", "floored_seeds")
+_STR_COLUMNS = ("task", "agent", "kind", "split")
+CACHE_DIR = "benchmark_cache"
 
 
-def agents_for(task: str, learned: list[LearnedPolicy], env_kwargs: dict | None = None) -> dict[str, Policy]:
-    """Scripted baselines (built against ``task``'s documented configuration), the identifying rule
-    ``identify_map``, the ``oracle`` (it knows the hidden draw) and the learned policies trained on
-    ``task``."""
-    env = gym.make(task, **(env_kwargs or {}))
-    out: dict[str, Policy] = dict(make_scripted_agents(env))
-    for ref in (IdentifyingAgent(env), OracleAgent(env)):
-        out[ref.name] = ref
-    env.close()
-    for p in learned:
-        if p.env_id == task:
-            out[p.name] = p
+# ------------------------------------------------------------------------------------------- jobs
+@dataclasses.dataclass(frozen=True, eq=False)  # hashed by identity (env_kwargs is a dict)
+class Chunk:
+    """One job of the sweep: ``entry``'s run ``run`` on ``seeds`` of ``task``."""
+
+    task: str
+    entry: AgentEntry
+    run: int
+    seeds: tuple[int, ...]
+    split: str
+    env_kwargs: dict
+    record_seed: int | None
+
+    def key(self) -> dict:
+        """What the cached result depends on (a file with another key is recomputed)."""
+        return {
+            "task": self.task,
+            "agent": self.entry.name,
+            "kind": self.entry.kind,
+            "run": self.run,
+            "split": self.split,
+            "seeds": list(self.seeds),
+            "env_kwargs": self.env_kwargs,
+            "record_seed": self.record_seed,
+            "model_sha256": _model_digest(self.entry, self.run),
+        }
+
+    def path(self, out: Path) -> Path:
+        slug = self.task.replace("/", "_")
+        return out / CACHE_DIR / self.split / slug / self.entry.name / f"run{self.run}_{self.seeds[0]}.json"
+
+
+def _model_digest(entry: AgentEntry, run: int) -> str | None:
+    """sha256 of a learned run's model and normalisation files (None for other kinds)."""
+    if entry.kind != "learned":
+        return None
+    d = Path(entry.run_paths[run])
+    base = d / "best" if (d / "best" / "model.zip").exists() else d
+    h = hashlib.sha256()
+    for name in ("model.zip", "vecnormalize.pkl"):
+        p = base / name
+        if p.exists():
+            h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def play_chunk(chunk: Chunk) -> dict:
+    """Play one chunk (in a worker): a fresh env of the task, the agent built against it, the seeds in
+    order.  Returns ``{"key", "episodes": [EpisodeResult as dict], "wall_s"}``."""
+    import gfb_env.envs  # noqa: F401  (registers the ids in a fresh worker)
+
+    t0 = time.perf_counter()
+    env = gym.make(chunk.task, **chunk.env_kwargs)
+    try:
+        pol = chunk.entry.build(env, chunk.run)
+        eps = [
+            dataclasses.asdict(run_episode(env, pol, int(s), record_path=s == chunk.record_seed))
+            for s in chunk.seeds
+        ]
+    finally:
+        env.close()
+    return {"key": chunk.key(), "episodes": eps, "wall_s": time.perf_counter() - t0}
+
+
+def _episode_from_dict(d: dict) -> EpisodeResult:
+    fields = {f.name for f in dataclasses.fields(EpisodeResult)}
+    kw = {k: (math.nan if v is None and k not in ("termination_reason",) else v) for k, v in d.items()}
+    return EpisodeResult(**{k: v for k, v in kw.items() if k in fields})
+
+
+def _load_cached(chunk: Chunk, out: Path) -> dict | None:
+    p = chunk.path(out)
+    if not p.exists():
+        return None
+    try:
+        rec = json.loads(p.read_text())
+    except (json.JSONDecodeError, OSError):
+        return None  # a torn write from an interruption: recompute
+    if rec.get("key") != json.loads(jsonio.dumps(chunk.key())):
+        return None
+    return rec
+
+
+def _store(chunk: Chunk, out: Path, rec: dict) -> None:
+    p = chunk.path(out)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    tmp = p.with_suffix(".tmp")
+    tmp.write_text(jsonio.dumps(rec))
+    os.replace(tmp, p)  # atomic: a killed run leaves a complete file or none
+
+
+def plan(
+    tasks: list[str],
+    split: str,
+    episodes: int,
+    chunk_size: int,
+    agent_filter: set[str] | None = None,
+    env_kwargs: dict[str, dict] | None = None,
+) -> list[Chunk]:
+    """The chunks of a benchmark run (naive and oracle of each task always included)."""
+    env_kwargs = env_kwargs or {}
+    seeds = split_seeds(split, episodes)
+    out = []
+    for task in tasks:
+        for e in ladder_for(task):
+            if agent_filter and e.name not in agent_filter and e.kind not in ("naive", "oracle"):
+                continue
+            for r in range(e.runs):
+                for i in range(0, len(seeds), chunk_size):
+                    out.append(
+                        Chunk(
+                            task,
+                            e,
+                            r,
+                            tuple(seeds[i : i + chunk_size]),
+                            split,
+                            dict(env_kwargs.get(task, {})),
+                            seeds[0] if r == 0 else None,
+                        )
+                    )
     return out
 
 
-def _run_pair(
-    task: str, name: str, policy: Policy, seeds: list[int], env_kwargs: dict | None = None
-) -> tuple[str, str, list[EpisodeResult], float]:
-    t0 = time.perf_counter()
-    res = evaluate(task, policy, seeds, env_kwargs=env_kwargs, record_path_seeds=(seeds[0],))
-    return task, name, res, time.perf_counter() - t0
-
-
-def run_benchmark(
-    tasks: list[str],
-    episodes: int,
-    agent_filter: set[str] | None = None,
+def run_chunks(
+    chunks: list[Chunk],
+    out: Path,
     n_jobs: int = 1,
-    policies_dir: str | Path | None = None,
-    env_kwargs: dict[str, dict] | None = None,
-    learned: list[LearnedPolicy] | None = None,
-) -> tuple[list[dict], dict]:
-    """Rows of the table and the first-episode paths ``{(task, agent): {"lam", "dw", "success", "reason"}}``.
-
-    ``env_kwargs`` maps a task id to extra ``gymnasium.make`` arguments (used by every agent of the task).
-    ``learned``: the learned policies to run (default: :func:`load_learned_policies` of ``policies_dir``
-    or of the shipped folder; a missing folder raises FileNotFoundError); ``[]`` runs the scripted
-    baselines only."""
+    scheduler: str | None = None,
+    fresh: bool = False,
+    progress: bool = True,
+) -> dict[Chunk, dict]:
+    """Results of every chunk: from the cache where the key matches (unless ``fresh``), else played
+    with joblib / Dask and stored at once."""
+    from joblib import Parallel, delayed
     from tqdm import tqdm
 
-    env_kwargs = env_kwargs or {}
-    if learned is None:
-        learned = load_learned_policies(policies_dir) if policies_dir else load_learned_policies()
-    seeds = [SEED0 + i for i in range(episodes)]
-    jobs = []
-    for task in tasks:
-        for name, pol in agents_for(task, learned, env_kwargs.get(task)).items():
-            if agent_filter and name not in agent_filter:
+    from gfb_env.sweeps import _backend
+
+    done: dict[Chunk, dict] = {}
+    todo = []
+    for c in chunks:
+        rec = None if fresh else _load_cached(c, out)
+        if rec is None:
+            todo.append(c)
+        else:
+            done[c] = rec
+    print(
+        f"benchmark: {len(chunks)} chunks ({len(done)} cached in {out / CACHE_DIR}, {len(todo)} to play)",
+        file=sys.stderr,
+    )
+    if todo:
+        bar = tqdm(total=len(todo), desc="benchmark chunks", unit="chunk", disable=not progress)
+        with _backend(scheduler):
+            kw = {"n_jobs": n_jobs} if scheduler is None else {}
+            par = Parallel(return_as="generator_unordered", **kw)
+            by_key = {json.dumps(jsonio.to_jsonable(c.key()), sort_keys=True): c for c in todo}
+            for rec in par(delayed(play_chunk)(c) for c in todo):
+                c = by_key[json.dumps(jsonio.to_jsonable(rec["key"]), sort_keys=True)]
+                rec = json.loads(jsonio.dumps(rec))
+                _store(c, out, rec)
+                done[c] = rec
+                rets = [e["episode_return"] for e in rec["episodes"]]
+                bar.set_postfix_str(f"{c.task.split('/')[-1]} {c.entry.name} run{c.run}: {np.mean(rets):.1f}")
+                bar.update(1)
+        bar.close()
+    return done
+
+
+# ---------------------------------------------------------------------------------------- reduce
+def reduce_results(
+    chunks: list[Chunk], results: dict[Chunk, dict], reps: int = DEFAULT_REPS
+) -> tuple[list[dict], dict, dict]:
+    """``(rows, per_task, paths)``: one row per (task, agent); per task the normalisation info and every
+    episode's returns and scores; the recorded first-episode paths."""
+    groups: dict[tuple[str, str], list[Chunk]] = {}
+    for c in chunks:
+        groups.setdefault((c.task, c.entry.name), []).append(c)
+    # episodes per (task, agent, run), in seed order
+    eps: dict[tuple[str, str], list[list[EpisodeResult]]] = {}
+    walls: dict[tuple[str, str], float] = {}
+    for k, cs in groups.items():
+        runs: dict[int, list[EpisodeResult]] = {}
+        for c in sorted(cs, key=lambda c: (c.run, c.seeds[0])):
+            runs.setdefault(c.run, []).extend(_episode_from_dict(d) for d in results[c]["episodes"])
+            walls[k] = walls.get(k, 0.0) + float(results[c]["wall_s"])
+        eps[k] = [runs[r] for r in sorted(runs)]
+    rows, per_task, paths = [], {}, {}
+    for task in dict.fromkeys(c.task for c in chunks):
+        nv, oc = naive_for(task), oracle_for(task)
+        ref_n = eps.get((task, nv.name)) if nv else None
+        ref_o = eps.get((task, oc.name)) if oc else None
+        info = {"naive": nv.name if nv else None, "oracle": oc.name if oc else None}
+        seeds = None
+        if ref_n and ref_o:
+            rn = np.array([e.episode_return for e in ref_n[0]])
+            ro = np.array([e.episode_return for e in ref_o[0]])
+            _, ninfo = normalized_scores(rn, rn, ro)
+            info.update(ninfo)
+            seeds = [e.seed for e in ref_n[0]]
+        else:
+            info.update({"no_headroom": True, "reason": "naive or oracle missing"})
+        agents_out = {}
+        for (t, name), runs in eps.items():
+            if t != task:
                 continue
-            jobs.append((task, name, pol))
-    rows, paths = [], {}
-    bar = tqdm(total=len(jobs), desc="benchmark (task, agent)", unit="pair")
-    if n_jobs > 1:
-        from joblib import Parallel, delayed
+            entry = next(c.entry for c in groups[(t, name)])
+            flat = [e for r in runs for e in r]
+            ret = np.array([[e.episode_return for e in r] for r in runs])
+            if ref_n and ref_o:
+                if any([e.seed for e in r] != seeds for r in runs):
+                    raise ValueError(f"{task} {name}: its seeds differ from the naive agent's")
+                scores, sinfo = normalized_scores(ret, rn, ro)
+                floored = sinfo["floored_seeds"]
+            else:
+                scores, floored = np.full(ret.shape, math.nan), 0
+            nstat = interval_estimates(scores, reps=reps)
+            rstat = interval_estimates(ret, reps=reps)
+            summ = summarise(flat)
+            row = {
+                "task": task,
+                "agent": name,
+                "kind": entry.kind,
+                "split": next(iter(groups[(t, name)])).split,
+                "episodes": ret.shape[1],
+                "training_seeds": entry.runs if entry.kind == "learned" else 0,
+                "success_rate": summ["success_rate"],
+                "mean_return": float(ret.mean()),
+                "return_ci95": 0.5 * (rstat["mean_high"] - rstat["mean_low"]),
+                "return_ci_low": rstat["mean_low"],
+                "return_ci_high": rstat["mean_high"],
+                "normalized_score": nstat["mean"],
+                "normalized_iqm": nstat["iqm"],
+                "normalized_ci_low": nstat["iqm_low"],
+                "normalized_ci_high": nstat["iqm_high"],
+                "touchdowns": summ["touchdowns"],
+                "mean_cost": summ["mean_cost"],
+                "mean_damping_change": summ["mean_damping_change"],
+                "time_to_target_s": summ["time_to_target_s"],
+                "final_speed_rpm": summ["final_speed_rpm"],
+                "final_stable_rate": summ["final_stable_rate"],
+                "max_whirl_amplitude": summ["max_whirl_amplitude"],
+                "mean_steps": summ["mean_steps"],
+                "floored_seeds": floored,
+                "wall_s": round(walls[(t, name)], 1),
+            }
+            rows.append(row)
+            agents_out[name] = {
+                "kind": entry.kind,
+                "seeds": [e.seed for e in runs[0]],
+                "returns": ret.tolist(),
+                "normalized": scores.tolist(),
+                "normalized_mean_ci": [nstat["mean_low"], nstat["mean_high"]],
+            }
+            first = runs[0][0]
+            if first.path_bearing_number:
+                paths[(task, name)] = {
+                    "lam": [float(x) for x in first.path_bearing_number],
+                    "dw": [float(x) for x in first.path_damping],
+                    "success": bool(first.success),
+                    "reason": first.termination_reason,
+                }
+        info["agents"] = agents_out
+        per_task[task] = info
+    order = {k: i for i, k in enumerate(ladder_mod.KINDS)}
+    rows.sort(key=lambda r: (list(per_task).index(r["task"]), order[r["kind"]], r["agent"]))
+    return rows, per_task, paths
 
-        outs = Parallel(n_jobs=n_jobs, return_as="generator")(
-            delayed(_run_pair)(t, n, p, seeds, env_kwargs.get(t)) for t, n, p in jobs
-        )
-    else:
-        outs = (_run_pair(t, n, p, seeds, env_kwargs.get(t)) for t, n, p in jobs)
-    kinds = {(t, n): p.kind for t, n, p in jobs}
-    for task, name, res, wall in outs:
-        row = {
-            "task": task,
-            "agent": name,
-            "kind": kinds[(task, name)],
-            **summarise(res),
-            "wall_s": round(wall, 1),
-        }
-        rows.append(row)
-        r0 = res[0]
-        paths[(task, name)] = {
-            "lam": [float(x) for x in r0.path_bearing_number],
-            "dw": [float(x) for x in r0.path_damping],
-            "success": bool(r0.success),
-            "reason": r0.termination_reason,
-        }
-        bar.set_postfix_str(f"{task.split('/')[-1]} {name}: {row['mean_return']:.1f}")
-        bar.update(1)
-    bar.close()
-    return rows, paths
 
-
+# ---------------------------------------------------------------------------------------- output
 def _read_previous(out: Path) -> tuple[list[dict], dict]:
     """Rows and paths of an earlier run in ``out`` (for ``--merge``)."""
     rows, paths = [], {}
     p = out / "benchmark_agents.csv"
     if p.exists():
         for r in csv.DictReader(p.open()):
-            row = dict(r)
-            for k in COLUMNS[3:]:
-                v = row.get(k, "")
-                row[k] = math.nan if v in ("", None) else float(v)
-            for k in ("episodes", "touchdowns"):
-                row[k] = int(row[k])
+            row: dict = {}
+            for k in COLUMNS:
+                v = r.get(k, "")
+                if k in _STR_COLUMNS:
+                    row[k] = v
+                elif k in _INT_COLUMNS:
+                    row[k] = int(float(v)) if v not in ("", None) else 0
+                else:
+                    row[k] = math.nan if v in ("", None) else float(v)
             rows.append(row)
     pj = out / "benchmark_agents_paths.json"
     if pj.exists():
@@ -186,38 +409,46 @@ def write_csv(rows: list[dict], path: Path) -> None:
             )
 
 
-def markdown_table(rows: list[dict], episodes: int) -> str:
-    """The benchmark as Markdown (one table, grouped by task, best mean return in bold per task)."""
-    head = (
-        "| task | agent | kind | success | return (mean +- 95% CI) | time to target (s) | final stable "
-        "speed (rpm) | max whirl (C) | touchdowns |"
-    )
+def markdown_table(rows: list[dict]) -> str:
+    """The benchmark as Markdown: one table, grouped by task, ladder order; the best normalised IQM of a
+    non-oracle agent per task in bold."""
+    splits = sorted({r["split"] for r in rows})
     lines = [
-        f"Benchmark: {episodes} seeded episodes per (task, agent) (seeds {SEED0}...{SEED0 + episodes - 1}); "
-        "`python -m gfb_experiments.benchmark_agents`.",
+        f"Benchmark on the {', '.join(splits)} seeds (`gfb_agents.seeds`); "
+        "`python -m gfb_experiments.benchmark_agents`. Normalised score per episode: 0 = naive, "
+        "1 = oracle on the same seed; IQM and mean return with 95 % stratified-bootstrap CIs (rliable).",
         "",
-        head,
-        "|" + "---|" * 9,
+        "| task | agent | kind | seeds x episodes | success | return (mean [95% CI]) | normalised IQM "
+        "[95% CI] | normalised mean | touchdowns | mean cost | mean abs dD cmd |",
+        "|" + "---|" * 11,
     ]
     for task in dict.fromkeys(r["task"] for r in rows):
         sub = [r for r in rows if r["task"] == task]
-        best = max(r["mean_return"] for r in sub)
-        for r in sorted(sub, key=lambda r: -r["mean_return"]):
-            ret = f"{r['mean_return']:.1f} +- {_fmt(r['return_ci95'], 1)}"
-            if r["mean_return"] == best:
-                ret = f"**{ret}**"
+        cand = [
+            r["normalized_iqm"] for r in sub if r["kind"] != "oracle" and math.isfinite(r["normalized_iqm"])
+        ]
+        best = max(cand) if cand else math.nan
+        for r in sub:
+            lo, hi = _fmt(r["normalized_ci_low"]), _fmt(r["normalized_ci_high"])
+            iqm = f"{_fmt(r['normalized_iqm'])} [{lo}, {hi}]"
+            if r["kind"] != "oracle" and r["normalized_iqm"] == best:
+                iqm = f"**{iqm}**"
+            runs = max(1, int(r["training_seeds"]))
             lines.append(
-                f"| {task.split('/')[-1]} | {r['agent']} | {r['kind']} | {r['success_rate']:.0%} | {ret} | "
-                f"{_fmt(r['time_to_target_s'], 3)} | {_fmt(r['final_speed_rpm'], 0)} | "
-                f"{_fmt(r['max_whirl_amplitude'], 3)} | {r['touchdowns']}/{r['episodes']} |"
+                f"| {task.split('/')[-1]} | {r['agent']} | {r['kind']} | {runs} x {r['episodes']} | "
+                f"{r['success_rate']:.0%} | {_fmt(r['mean_return'], 1)} [{_fmt(r['return_ci_low'], 1)}, "
+                f"{_fmt(r['return_ci_high'], 1)}] | {iqm} | {_fmt(r['normalized_score'])} | "
+                f"{r['touchdowns']}/{runs * r['episodes']} | {_fmt(r['mean_cost'])} | "
+                f"{_fmt(r['mean_damping_change'], 3)} |"
             )
     lines += [
         "",
-        "Columns: success = share of episodes ending in `success`; time to target = rotor time until the "
-        "speed is first within the task's tolerance of its target (WhirlRecovery: time of success), mean "
-        "over the episodes that got there; final stable speed = mean end speed of the episodes that ended "
-        "without whirl or touchdown; max whirl = mean over episodes of the largest whirl amplitude "
-        "(units of the clearance C); touchdowns include solver failures.",
+        "Columns: seeds x episodes = independent training seeds (1 for naive, rules, oracle) x test "
+        "episodes; success = share of episodes ending in `success`; normalised IQM = interquartile mean "
+        "of the per-episode scores (rliable), CI over episodes stratified by training seed (seeds "
+        "resampled too where there are several); touchdowns include solver failures; mean cost = mean "
+        "over episodes of the summed `info['cost']` (- where the task has none); mean abs dD cmd = mean "
+        "per step of the change of the commanded damping on the action scale (log D_W, 2 = whole range).",
     ]
     return "\n".join(lines) + "\n"
 
@@ -237,7 +468,7 @@ def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> N
     names = sorted({a for (_, a) in paths})
     colors = {a: plt.cm.tab10(i % 10) for i, a in enumerate(names)}
     styles = {a: ("-", "--", ":", "-.")[i % 4] for i, a in enumerate(names)}
-    for ax, task in zip(axes[0], tasks):
+    for ax, task in zip(axes[0], tasks, strict=False):
         lams = [x for (t, _), r in paths.items() if t == task for x in r["lam"]]
         x0 = min([0.40, *lams]) - 0.01
         x1 = max([0.80, *lams]) + 0.01
@@ -293,24 +524,69 @@ def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> N
     plt.close(fig)
 
 
+def profile_name(task: str) -> str:
+    return f"benchmark_agents_profile_{task.split('/')[-1]}.png"
+
+
+def write_outputs(
+    out: Path, rows: list[dict], per_task: dict, paths: dict, meta: dict, env_kwargs: dict[str, dict]
+) -> None:
+    """CSV, JSON, Markdown, one performance profile per task, the paths figure."""
+    write_csv(rows, out / "benchmark_agents.csv")
+    (out / "benchmark_agents.md").write_text(markdown_table(rows))
+    (out / "benchmark_agents_paths.json").write_text(
+        jsonio.dumps({f"{t}|{n}": v for (t, n), v in paths.items()})
+    )
+    for task, info in per_task.items():
+        sd = {a: np.asarray(v["normalized"], dtype=np.float64) for a, v in info.get("agents", {}).items()}
+        performance_profile_png(
+            sd, out / profile_name(task), title=f"{task.split('/')[-1]} ({meta['split']} seeds)"
+        )
+    tasks = list(dict.fromkeys(r["task"] for r in rows))
+    env = gym.make(tasks[0], **env_kwargs.get(tasks[0], {}))
+    plot_paths(paths, NominalMap.from_env(env), out / "benchmark_agents_paths.png", tasks)
+    env.close()
+    jsonio.write_json(out / "benchmark_agents.json", {**meta, "rows": rows, "tasks": per_task})
+
+
+# ------------------------------------------------------------------------------------------- CLI
 def main(argv: list[str] | None = None) -> int:
     ap = OneLineParser(prog="python -m gfb_experiments.benchmark_agents", description=__doc__.splitlines()[0])
-    ap.add_argument("--episodes", type=int, default=50, help="seeded episodes per (task, agent) (>= 1)")
-    ap.add_argument("--quick", action="store_true", help="one episode per pair (for tests)")
+    ap.add_argument("--split", default="test", choices=sorted(SPLITS), help="seed split (gfb_agents.seeds)")
+    ap.add_argument(
+        "--episodes", type=int, default=MIN_TEST_EPISODES, help="seeded episodes per (task, agent, run)"
+    )
+    ap.add_argument("--quick", action="store_true", help="two episodes per pair, one per chunk (for tests)")
     ap.add_argument("--tasks", default=None, help=f"comma-separated env ids (default: {','.join(TASKS)})")
-    ap.add_argument("--agents", default=None, help="comma-separated agent names (default: all)")
-    ap.add_argument("--out", default="results", help="output directory")
+    ap.add_argument(
+        "--agents",
+        default=None,
+        help="comma-separated agent names (default: all; naive and oracle always run)",
+    )
+    ap.add_argument("--out", default="results", help="output directory (the chunk cache goes under it)")
     ap.add_argument(
         "--policies",
         default=None,
         help="directory of learned policies (default: the committed ones, shipped as gfb_agents/policies)",
     )
     ap.add_argument(
+        "--learned",
+        action="append",
+        default=[],
+        help="a gfb_agents.train output folder (seed*/ runs) to register as a learned agent (repeatable)",
+    )
+    ap.add_argument(
         "--no-learned",
         action="store_true",
-        help="run the scripted baselines only (without it, missing learned policies are an error)",
+        help="run without the committed learned policies (without it, missing ones are an error)",
     )
-    ap.add_argument("--n-jobs", type=int, default=1, help="parallel (task, agent) pairs, at most 2")
+    ap.add_argument("--n-jobs", type=int, default=1, help="parallel chunks on this machine (-1: all cores)")
+    ap.add_argument(
+        "--scheduler", default=None, help="Dask scheduler address: run the chunks on that cluster"
+    )
+    ap.add_argument("--chunk", type=int, default=10, help="seeds per cached job (>= 1)")
+    ap.add_argument("--reps", type=int, default=DEFAULT_REPS, help="bootstrap replications (>= 100)")
+    ap.add_argument("--fresh", action="store_true", help="ignore the chunk cache (replay every chunk)")
     ap.add_argument(
         "--env-kwargs",
         default=None,
@@ -319,7 +595,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--merge",
         action="store_true",
-        help="merge into the existing table in --out (replace same task/agent)",
+        help="keep the rows of other (task, agent) pairs of the existing table in --out",
     )
     a = ap.parse_args(argv)
     env_kwargs: dict[str, dict] = {}
@@ -330,11 +606,19 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"--env-kwargs is not valid JSON: {exc}")
         if not isinstance(env_kwargs, dict) or not all(isinstance(v, dict) for v in env_kwargs.values()):
             ap.error("--env-kwargs must be a JSON object mapping task ids to objects")
-    episodes = 1 if a.quick else a.episodes
+    episodes = 2 if a.quick else a.episodes
+    chunk = 1 if a.quick else a.chunk
     if episodes < 1:
         ap.error(f"--episodes must be >= 1, got {a.episodes}")
-    if not 1 <= a.n_jobs <= 2:
-        ap.error(f"--n-jobs must be 1 or 2 (two shared cores), got {a.n_jobs}")
+    if episodes > len(SPLITS[a.split]):
+        ap.error(f"--episodes {episodes}: the {a.split} split has only {len(SPLITS[a.split])} seeds")
+    if chunk < 1:
+        ap.error(f"--chunk must be >= 1, got {a.chunk}")
+    if a.reps < 100:
+        ap.error(f"--reps must be >= 100, got {a.reps}")
+    cpus = os.cpu_count() or 1
+    if a.scheduler is None and not (a.n_jobs == -1 or 1 <= a.n_jobs <= cpus):
+        ap.error(f"--n-jobs must be -1 or lie in [1, {cpus}] (this machine's cores), got {a.n_jobs}")
     try:  # before any episode: an unwritable --out fails now, not after the benchmark
         check_output_dir(a.out, "--out")
     except ValueError as exc:
@@ -345,63 +629,80 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"unknown task {t!r}; known: {', '.join(TASKS)}")
     if a.no_learned and a.policies:
         ap.error("--no-learned and --policies exclude each other")
-    learned: list[LearnedPolicy] = []
+    with ladder_mod.scoped():
+        return _run(ap, a, tasks, episodes, chunk, env_kwargs, argv)
+
+
+def _run(ap, a, tasks, episodes, chunk, env_kwargs, argv) -> int:
+    # the learned agents: the committed ones (or --policies), plus --learned training outputs
+    for e in ladder_mod.registered().values():
+        if e.kind == "learned":
+            ladder_mod.unregister(e.name)
     if not a.no_learned:
         # before any episode: a benchmark that silently lacks its learned agents is wrong, not partial
         root = Path(a.policies) if a.policies else POLICIES_DIR
-        # one line on stderr, no usage text: the arguments are fine, the data are missing
         try:
-            learned = load_learned_policies(root)
-        except FileNotFoundError as exc:
-            print(
-                f"{ap.prog}: error: {exc}; pass --no-learned to run the scripted baselines only",
-                file=sys.stderr,
-            )
+            found = learned_entries(root)
+        except (FileNotFoundError, ValueError) as exc:
+            print(f"{ap.prog}: error: {exc}; pass --no-learned to run without them", file=sys.stderr)
             return 2
-        if not learned:
+        if not found:
             print(
                 f"{ap.prog}: error: no learned policy (<name>/model.zip) in {root}; "
-                "pass --no-learned to run the scripted baselines only",
+                "pass --no-learned to run without them",
                 file=sys.stderr,
             )
             return 2
+        for e in found:
+            ladder_mod.register(e, replace=True)
+    for d in a.learned:
+        try:
+            ladder_mod.register_learned(d)
+        except (FileNotFoundError, ValueError) as exc:
+            ap.error(f"--learned {d}: {exc}")
     t0 = time.perf_counter()
-    rows, paths = run_benchmark(
-        tasks,
-        episodes,
-        set(a.agents.split(",")) if a.agents else None,
-        a.n_jobs,
-        env_kwargs=env_kwargs,
-        learned=learned,
-    )
+    chunks = plan(tasks, a.split, episodes, chunk, set(a.agents.split(",")) if a.agents else None, env_kwargs)
+    for t in tasks:
+        if naive_for(t) is None or oracle_for(t) is None:
+            print(
+                f"warning: {t} has no naive or no oracle agent: its normalised scores are NaN",
+                file=sys.stderr,
+            )
+    if a.split == "test" and episodes < MIN_TEST_EPISODES:
+        print(
+            f"note: {episodes} test episodes per (task, agent) is below the table's {MIN_TEST_EPISODES}",
+            file=sys.stderr,
+        )
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    results = run_chunks(chunks, out, a.n_jobs, a.scheduler, fresh=a.fresh)
+    rows, per_task, paths = reduce_results(chunks, results, reps=a.reps)
     if a.merge:
         old_rows, old_paths = _read_previous(out)
         new = {(r["task"], r["agent"]) for r in rows}
         rows = [r for r in old_rows if (r["task"], r["agent"]) not in new] + rows
         paths = {**{k: v for k, v in old_paths.items() if k not in new}, **paths}
-        if any(int(r["episodes"]) != episodes for r in rows):
-            print("warning: merged rows have different episode counts")
-    order = {t: i for i, t in enumerate(TASKS)}
-    rows.sort(key=lambda r: order.get(r["task"], 99))
-    all_tasks = sorted({r["task"] for r in rows}, key=lambda t: order.get(t, 99))
-    write_csv(rows, out / "benchmark_agents.csv")
-    (out / "benchmark_agents.md").write_text(markdown_table(rows, episodes))
-    (out / "benchmark_agents_paths.json").write_text(
-        jsonio.dumps({f"{t}|{n}": v for (t, n), v in paths.items()})
-    )
-    env = gym.make(tasks[0], **env_kwargs.get(tasks[0], {}))
-    plot_paths(paths, NominalMap.from_env(env), out / "benchmark_agents_paths.png", all_tasks)
-    env.close()
+        if any(int(r["episodes"]) != episodes or r["split"] != a.split for r in rows):
+            print("warning: merged rows have different episode counts or splits", file=sys.stderr)
+        order = {t: i for i, t in enumerate(TASKS)}
+        kinds = {k: i for i, k in enumerate(ladder_mod.KINDS)}
+        rows.sort(key=lambda r: (order.get(r["task"], 99), kinds.get(r["kind"], 9), r["agent"]))
+        if (out / "benchmark_agents.json").exists():
+            old = json.loads((out / "benchmark_agents.json").read_text()).get("tasks", {})
+            per_task = {**{k: v for k, v in old.items() if k not in per_task}, **per_task}
+    seeds = split_seeds(a.split, episodes)
     meta = {
+        "split": a.split,
         "episodes": episodes,
-        "seeds": [SEED0, SEED0 + episodes - 1],
-        "tasks": all_tasks,
+        "seeds": [seeds[0], seeds[-1]],
+        "tasks": list(dict.fromkeys(r["task"] for r in rows)),
         "env_kwargs": env_kwargs,
+        "bootstrap_reps": a.reps,
+        "command": "python -m gfb_experiments.benchmark_agents "
+        + " ".join(shlex.quote(x) for x in (argv if argv is not None else sys.argv[1:])),
         "wall_time_s_last_run": round(time.perf_counter() - t0, 1),
     }
-    (out / "benchmark_agents.json").write_text(jsonio.dumps(meta, indent=2))
+    write_outputs(out, rows, per_task, paths, meta, env_kwargs)
     print((out / "benchmark_agents.md").read_text())
     return 0
 

@@ -207,36 +207,60 @@ def test_train_cli_rejects_bad_arguments(capsys, tmp_path, argv, fragment):
     _exit_2_one_line(train_main, argv, fragment, capsys)
 
 
-def test_benchmark_quick_writes_table(tmp_path):
-    from gfb_experiments.benchmark_agents import COLUMNS, main
+def test_benchmark_quick_writes_table_and_resumes_from_its_cache(tmp_path, capsys):
+    from gfb_experiments.benchmark_agents import CACHE_DIR, COLUMNS, main
 
-    assert main(["--quick", "--out", str(tmp_path), "--no-learned"]) == 0
+    tasks = "gfb_env/RunUp-v0,gfb_env/WhirlRecovery-v1"
+    short = json.dumps({t: {"max_episode_steps": 12} for t in tasks.split(",")})
+    args = ["--quick", "--out", str(tmp_path), "--no-learned", "--tasks", tasks, "--env-kwargs", short]
+    assert main(args + ["--agents", "map_informed,feedback", "--reps", "200"]) == 0
     rows = list(csv.DictReader((tmp_path / "benchmark_agents.csv").open()))
-    assert rows
     required = {
         "task",
         "agent",
         "kind",
+        "split",
         "episodes",
+        "training_seeds",
         "success_rate",
         "mean_return",
         "return_ci95",
-        "time_to_target_s",
-        "final_speed_rpm",
-        "max_whirl_amplitude",
+        "normalized_score",
+        "normalized_iqm",
+        "normalized_ci_low",
+        "normalized_ci_high",
         "touchdowns",
+        "mean_cost",
+        "mean_damping_change",
     }
     assert required <= set(rows[0]) and set(COLUMNS) == set(rows[0])
-    assert {r["kind"] for r in rows} == {"scripted", "oracle"}
-    assert all(r["episodes"] == "1" for r in rows)
+    # naive and oracle always run: they define the normalised score
+    assert {(r["task"], r["agent"]) for r in rows} == {
+        (t, a) for t in tasks.split(",") for a in ("naive", "map_informed", "feedback", "oracle")
+    }
+    assert {r["kind"] for r in rows} == {"naive", "rule", "oracle"}
+    assert all(r["episodes"] == "2" and r["split"] == "test" for r in rows)
+    for r in rows:
+        if r["kind"] == "naive" and r["normalized_iqm"] != "":
+            assert float(r["normalized_iqm"]) == 0.0
     assert "| task | agent |" in (tmp_path / "benchmark_agents.md").read_text()
     assert (tmp_path / "benchmark_agents_paths.png").stat().st_size > 10_000
+    meta = json.loads((tmp_path / "benchmark_agents.json").read_text())
+    assert meta["split"] == "test" and len(meta["rows"]) == len(rows)
+    assert set(meta["tasks"]["gfb_env/RunUp-v0"]["agents"]) == {"naive", "map_informed", "feedback", "oracle"}
+    cache = sorted((tmp_path / CACHE_DIR).rglob("*.json"))
+    assert len(cache) == 2 * 2 * 4  # tasks x agents x one-seed chunks
+    # a rerun plays nothing; a lost chunk (or one with another key) is played again
+    capsys.readouterr()
+    cache[0].unlink()
+    assert main(args + ["--agents", "map_informed,feedback", "--reps", "200"]) == 0
+    assert "(15 cached" in capsys.readouterr().err
+    again = list(csv.DictReader((tmp_path / "benchmark_agents.csv").open()))
+    assert [r["mean_return"] for r in again] == [r["mean_return"] for r in rows]
     # --merge replaces the rows of the agents it re-runs and keeps the others
-    n = len(rows)
-    args = ["--quick", "--out", str(tmp_path), "--no-learned", "--merge"]
-    assert main(args + ["--tasks", "gfb_env/RunUp-v0", "--agents", "map_informed"]) == 0
+    assert main(args + ["--merge", "--tasks", "gfb_env/RunUp-v0", "--agents", "map_informed"]) == 0
     rows2 = list(csv.DictReader((tmp_path / "benchmark_agents.csv").open()))
-    assert len(rows2) == n
+    assert len(rows2) == len(rows)
     assert sum(r["agent"] == "map_informed" and r["task"] == "gfb_env/RunUp-v0" for r in rows2) == 1
 
 
@@ -245,7 +269,10 @@ def test_benchmark_quick_writes_table(tmp_path):
     [
         (["--episodes", "0"], "--episodes must be >= 1, got 0"),
         (["--tasks", "gfb_env/Nope-v0"], "unknown task 'gfb_env/Nope-v0'"),
-        (["--n-jobs", "8"], "--n-jobs must be 1 or 2"),
+        (["--n-jobs", "999"], "--n-jobs must be -1 or lie in"),
+        (["--chunk", "0"], "--chunk must be >= 1"),
+        (["--split", "train"], "argument --split: invalid choice"),
+        (["--split", "legacy_v0", "--episodes", "51"], "the legacy_v0 split has only 50 seeds"),
         (["--env-kwargs", "{not json"], "--env-kwargs is not valid JSON"),
         (["--out", "{file}/bench"], "cannot create the folder"),
     ],

@@ -3,6 +3,7 @@ statistics (on synthetic score matrices with known answers)."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 
@@ -121,3 +122,136 @@ def test_statistics_refuse_bad_input_and_pass_nan_through():
         interval_estimates(np.zeros((0, 0)))
     est = interval_estimates(np.array([[0.1, math.nan, 0.3]]))
     assert all(math.isnan(v) for v in est.values())
+
+
+# ------------------------------------------------------------------------------------------ ladder
+def test_every_task_has_one_naive_and_one_oracle_and_kinds_are_valid():
+    from gfb_agents import ladder
+    from gfb_env.envs import ENV_IDS
+
+    for task in ENV_IDS:
+        entries = ladder.ladder_for(task)
+        assert ladder.naive_for(task).name == "naive" and ladder.oracle_for(task) is not None, task
+        assert all(e.kind in ladder.KINDS for e in entries)
+        kinds = [e.kind for e in entries]
+        assert kinds == sorted(kinds, key=ladder.KINDS.index)  # ladder order
+        assert sum(k == "rule" for k in kinds) >= 5
+
+
+def test_register_refuses_duplicates_and_bad_entries_and_scoped_undoes():
+    from gfb_agents import ladder
+
+    e = ladder.AgentEntry("test_rule", "rule", ("gfb_env/RunUp-v0",), ladder.make_naive)
+    with ladder.scoped():
+        ladder.register(e)
+        assert "test_rule" in ladder.registered()
+        with pytest.raises(ValueError, match="already registered"):
+            ladder.register(e)
+        ladder.register(e, replace=True)
+        # a second naive agent for the task is an error where the benchmark asks for it
+        ladder.register(ladder.AgentEntry("naive2", "naive", ("gfb_env/RunUp-v0",), ladder.make_naive))
+        with pytest.raises(ValueError, match="2 naive agents"):
+            ladder.naive_for("gfb_env/RunUp-v0")
+    assert "test_rule" not in ladder.registered() and "naive2" not in ladder.registered()
+    with pytest.raises(ValueError, match="kind"):
+        ladder.AgentEntry("x", "scripted", ("t",), ladder.make_naive)
+    with pytest.raises(ValueError, match="run_paths"):
+        ladder.AgentEntry("x", "learned", ("t",))
+    with pytest.raises(ValueError, match="factory"):
+        ladder.AgentEntry("x", "rule", ("t",))
+    with pytest.raises(ValueError, match="name"):
+        ladder.AgentEntry("a|b", "rule", ("t",), ladder.make_naive)
+
+
+def test_naive_ramp_holds_below_lambda_c_of_damping_one():
+    import gymnasium as gym
+
+    from gfb_agents import ladder
+    from gfb_agents.nominal_map import NominalMap
+
+    env = gym.make("gfb_env/RunUp-v0")
+    nmap = NominalMap.from_env(env)
+    agent = ladder.make_naive(env)
+    assert agent.kind == "scripted" and agent.damping == 1.0
+    cap = nmap.rpm(0.95 * nmap.critical_at(1.0))
+    obs, _ = env.reset(seed=seeds.DEV.start)
+    assert agent.setpoint_rpm(obs) == pytest.approx(min(cap, agent.spec.target_rpm))
+    a, _ = agent.predict(obs, episode_start=True)
+    assert a[0] == pytest.approx(1.0)  # full motor rate from the start speed
+    assert env.unwrapped.damping_from_action(float(a[1])) == pytest.approx(1.0, rel=1e-6)
+    env.close()
+
+
+def test_learned_entries_find_single_and_multi_seed_folders(tmp_path):
+    import json
+
+    from gfb_agents import ladder
+
+    one = tmp_path / "RunUp_ppo"
+    one.mkdir()
+    (one / "model.zip").write_bytes(b"")
+    (one / "run.json").write_text(json.dumps({"env_id": "gfb_env/RunUp-v0", "algo": "ppo"}))
+    multi = tmp_path / "RunUp_sac5"
+    for k in range(3):
+        d = multi / f"seed{k}" / "best"
+        d.mkdir(parents=True)
+        (d / "model.zip").write_bytes(b"")
+        (d.parent / "run.json").write_text(json.dumps({"env_id": "gfb_env/RunUp-v1", "algo": "sac"}))
+    (tmp_path / "empty").mkdir()
+    got = {e.name: e for e in ladder.learned_entries(tmp_path)}
+    assert set(got) == {"RunUp_ppo", "RunUp_sac5"}
+    assert got["RunUp_ppo"].runs == 1 and got["RunUp_ppo"].tasks == ("gfb_env/RunUp-v0",)
+    assert got["RunUp_sac5"].runs == 3 and got["RunUp_sac5"].tasks == ("gfb_env/RunUp-v1",)
+    with pytest.raises(FileNotFoundError):
+        ladder.register_learned(tmp_path / "empty")
+
+
+# ------------------------------------------------------------------------- the table from episodes
+def test_table_rows_from_constructed_episodes():
+    """reduce_results on hand-made episodes: per-seed normalisation, one row per agent, learned agents
+    stratified by training seed."""
+    from gfb_agents import ladder
+    from gfb_agents.evaluate import EpisodeResult
+    from gfb_experiments.benchmark_agents import Chunk, reduce_results
+
+    task = "gfb_env/RunUp-v0"
+    sd = seeds.split_seeds("test", 8)
+    naive_r = np.linspace(-10.0, 4.0, 8)
+    oracle_r = naive_r + np.linspace(20.0, 40.0, 8)
+
+    def episodes(ss, rets):
+        return [
+            dataclasses.asdict(
+                EpisodeResult(s, float(r), 10, r > 0, None, True, math.nan, 1.0, True, 0.0, False)
+            )
+            for s, r in zip(ss, rets, strict=True)
+        ]
+
+    entries = {
+        "naive": ladder.naive_for(task),
+        "oracle": ladder.oracle_for(task),
+        "half": ladder.AgentEntry("half", "rule", (task,), ladder.make_naive),
+        "learn": ladder.AgentEntry("learn", "learned", (task,), run_paths=("a", "b")),
+    }
+    frac = {"naive": [0.0], "oracle": [1.0], "half": [0.5], "learn": [0.2, 0.6]}
+    chunks, results = [], {}
+    for name, e in entries.items():
+        for run, f in enumerate(frac[name]):
+            for i in (0, 4):
+                c = Chunk(task, e, run, tuple(sd[i : i + 4]), "test", {}, None)
+                rets = (naive_r + f * (oracle_r - naive_r))[i : i + 4]
+                chunks.append(c)
+                results[c] = {"episodes": episodes(c.seeds, rets), "wall_s": 1.0}
+    rows, per_task, _ = reduce_results(chunks, results, reps=500)
+    by = {r["agent"]: r for r in rows}
+    assert [r["kind"] for r in rows] == ["naive", "rule", "oracle", "learned"]
+    assert by["naive"]["normalized_iqm"] == pytest.approx(0.0)
+    assert by["oracle"]["normalized_iqm"] == pytest.approx(1.0)
+    assert by["half"]["normalized_iqm"] == pytest.approx(0.5)
+    assert by["half"]["normalized_ci_low"] == pytest.approx(0.5)  # no spread, no interval
+    assert by["learn"]["normalized_score"] == pytest.approx(0.4) and by["learn"]["training_seeds"] == 2
+    assert by["learn"]["normalized_ci_low"] < 0.4 < by["learn"]["normalized_ci_high"]
+    assert by["half"]["mean_return"] == pytest.approx(np.mean(naive_r + 0.5 * (oracle_r - naive_r)))
+    assert by["half"]["wall_s"] == 2.0 and by["half"]["episodes"] == 8
+    assert per_task[task]["floored_seeds"] == 0
+    np.testing.assert_allclose(per_task[task]["agents"]["learn"]["normalized"], [[0.2] * 8, [0.6] * 8])

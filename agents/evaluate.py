@@ -106,6 +106,7 @@ class LearnedPolicy(Policy):
         self.frame_stack = int(meta.get("frame_stack", 1) or 1)
         self.recurrent = algo == "recurrentppo"
         self.model = algo_class(algo).load(str(zip_path), device="cpu")
+        self.model_path = zip_path
         # the frozen observation statistics only (the unpickled VecNormalize has no venv and cannot be
         # pickled again, e.g. to a joblib worker)
         self.obs_mean = self.obs_var = None
@@ -121,6 +122,27 @@ class LearnedPolicy(Policy):
         self.name = name or (p.name if p.is_dir() else zip_path.stem)
         self._stack: np.ndarray | None = None  # (n_envs, frame_stack * n_obs), VecFrameStack's layout
 
+    @classmethod
+    def from_model(
+        cls, model, algo: str, vec_normalize=None, frame_stack: int = 1, name: str = "snapshot"
+    ) -> LearnedPolicy:
+        """A policy of an in-memory model (a training run's current state, for its validation): the
+        observation statistics of ``vec_normalize`` are copied (frozen), nothing is read from disk.
+        Not picklable (use the saved files for that)."""
+        self = cls.__new__(cls)
+        self.model, self.algo, self.name, self.meta = model, algo, name, {}
+        self.model_path = None
+        self.env_id, self.frame_stack, self.recurrent = None, int(frame_stack), algo == "recurrentppo"
+        self.obs_mean = self.obs_var = None
+        self.epsilon, self.clip_obs = 1e-8, 10.0
+        if vec_normalize is not None and vec_normalize.norm_obs:
+            self.obs_mean = np.array(vec_normalize.obs_rms.mean, dtype=np.float64)
+            self.obs_var = np.array(vec_normalize.obs_rms.var, dtype=np.float64)
+            self.epsilon, self.clip_obs = float(vec_normalize.epsilon), float(vec_normalize.clip_obs)
+        self._args = None
+        self._stack = None
+        return self
+
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         """The observation as the model saw it in training (VecNormalize statistics, frozen)."""
         if self.obs_mean is None:
@@ -130,6 +152,8 @@ class LearnedPolicy(Policy):
 
     def __reduce__(self):
         # pickled by path (a joblib worker reloads the files)
+        if self._args is None:
+            raise TypeError("a LearnedPolicy.from_model snapshot cannot be pickled; save the model first")
         return (LearnedPolicy, self._args)
 
     def reset(self) -> None:

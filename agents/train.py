@@ -1,35 +1,48 @@
-"""Train a Stable-Baselines3 agent (PPO or SAC) on a gfb_env task.
+"""Train Stable-Baselines3 agents (PPO, SAC, RecurrentPPO) on a gfb_env task, the way RL papers do.
 
-    python -m gfb_agents.train --algo {ppo,sac} --env gfb_env/RunUpRandomized-v0 [--timesteps N] [--seed S]
-                           [--n-envs K] [--resume CHECKPOINT.zip] [--out DIR] [--hyperparams FILE]
-                           [--env-kwargs JSON] [--eval-freq N] [--eval-episodes N]
-                           [--checkpoint-freq N] [--no-progress-bar] [--vec-env {dummy,subproc,native}]
+    python -m gfb_agents.train --algo {ppo,sac,recurrentppo} --env gfb_env/RunUpRandomized-v1
+        [--seeds 0-4 | --seed R] [--timesteps N] [--n-jobs K | --scheduler ADDRESS] [--out DIR]
+        [--n-envs K] [--frame-stack K] [--hyperparams FILE] [--env-kwargs JSON] [--eval-freq N]
+        [--eval-episodes N] [--checkpoint-freq N] [--keep-checkpoints N] [--no-progress-bar]
+        [--vec-env {dummy,subproc,native}]
 
 Hyperparameters come from ``agents/hyperparams/<algo>.yml`` in rl-zoo3's layout (top-level keys are env
 ids; besides the algorithm's keyword arguments the zoo's ``n_timesteps``, ``policy``, ``n_envs`` and
 ``normalize`` are understood; ``policy_kwargs`` may be a string like ``"dict(net_arch=[64, 64])"`` and
 ``learning_rate`` may be ``lin_3e-4`` for a linear schedule, as in the zoo).
 
-Everything lands in ``--out`` (default ``runs/<task>_<algo>_s<seed>``, gitignored)::
+Seeds (:mod:`gfb_agents.seeds`): independent training run ``r`` (``--seeds 0-4``: five runs) seeds
+Python / NumPy / torch with ``r`` and resets training env ``i`` with ``train_env_seed(r, i, session)``
+(inside the TRAIN range); model selection plays the first ``--eval-episodes`` VALIDATION seeds; the TEST
+seeds are never touched here.  Memory: ``--algo recurrentppo`` (sb3-contrib's LSTM policy) or
+``--frame-stack K`` (the last K observations, SB3's ``VecFrameStack``) for PPO / SAC.
+
+Each run lives in ``<out>/seed<r>`` (``--out`` default ``runs/<env>_<algo>``, gitignored)::
 
     model.zip, vecnormalize.pkl      final model and its observation-normalisation statistics
-    checkpoints/                     periodic model + VecNormalize (+ SAC replay buffer) snapshots
-    eval/                            EvalCallback: evaluations.npz, best_model.zip (+ best_vecnormalize.pkl)
-    monitor/                         Monitor CSVs of the training envs
-    tb/                              TensorBoard logs
-    learning_curve.png, run.json     learning curve; command, seed, wall time, timesteps, final evaluation
+    best/                            model + statistics with the best validation mean return (model
+                                     selection; what the benchmark plays), best.json
+    validation.json                  every validation: steps, mean/std return, success, damping change
+    checkpoints/step_<N>/, latest.json   the last --keep-checkpoints checkpoints: model, VecNormalize,
+                                     SAC replay buffer, step count, wall time so far
+    monitor/, tb/                    Monitor CSVs of the training envs, TensorBoard logs
+    learning_curve.png, run.json     learning curve; command, seeds, steps, wall time, throughput (env
+                                     steps/s, with and without validation), sessions, best validation
 
-Seeding is deterministic: ``set_random_seed(seed)`` (Python, NumPy, torch), training env ``i`` is seeded
-with ``seed + i`` and the evaluation env with ``seed + 10_000``.  ``--resume`` continues from a checkpoint
-zip and the VecNormalize statistics saved next to it (same step count), keeping the step counter.
+Resuming: rerunning the same command continues every run from its last checkpoint (a finished run is
+skipped), so a killed or Ctrl-C'd sweep loses at most ``--checkpoint-freq`` steps per run.  Several runs
+train in parallel with joblib (``--n-jobs``) or on a Dask cluster (``--scheduler``; the workers need this
+package and a shared ``--out``).
 """
 
 from __future__ import annotations
 
 import ast
 import json
+import os
 import re
 import shlex
+import shutil
 import sys
 import time
 from dataclasses import asdict, dataclass, field
@@ -40,6 +53,9 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
+from gfb_agents import seeds as seeds_mod
+from gfb_agents.evaluate import algo_class
+from gfb_agents.seeds import VALIDATION
 from gfb_env import jsonio
 from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env._threads import set_thread_defaults
@@ -47,6 +63,8 @@ from gfb_env._threads import set_thread_defaults
 __all__ = [
     "ALGOS",
     "TrainConfig",
+    "latest_checkpoint",
+    "train_seeds",
     "VEC_ENVS",
     "importable_env_id",
     "load_hyperparams",
@@ -57,15 +75,9 @@ __all__ = [
 ]
 
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
-ALGOS = ("ppo", "sac")
+ALGOS = ("ppo", "sac", "recurrentppo")
 #: keys of the zoo files that are not algorithm keyword arguments
 ZOO_KEYS = ("n_timesteps", "policy", "n_envs", "normalize", "env_wrapper", "frame_stack", "callback")
-
-
-def _algo_class(algo: str):
-    from stable_baselines3 import PPO, SAC
-
-    return {"ppo": PPO, "sac": SAC}[algo]
 
 
 def _linear_schedule(initial: float):
@@ -188,29 +200,29 @@ def make_vec_env_for(
     )
 
 
-def _find_vecnormalize(checkpoint: Path) -> Path | None:
-    """VecNormalize statistics saved with a checkpoint: CheckpointCallback's
-    ``<prefix>_vecnormalize_<N>_steps.pkl``, EvalCallback's ``best_vecnormalize.pkl`` or a
-    ``vecnormalize.pkl`` in the same folder."""
-    m = re.fullmatch(r"(.*)_(\d+)_steps\.zip", checkpoint.name)
-    cands = []
-    if m:
-        cands.append(checkpoint.with_name(f"{m.group(1)}_vecnormalize_{m.group(2)}_steps.pkl"))
-    if checkpoint.name == "best_model.zip":
-        cands.append(checkpoint.with_name("best_vecnormalize.pkl"))
-    cands.append(checkpoint.with_name("vecnormalize.pkl"))
-    return next((c for c in cands if c.exists()), None)
+# ------------------------------------------------------------------------------ checkpoints, validation
+def _atomic_write_json(path: Path, obj: Any) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(jsonio.dumps(obj, indent=2))
+    os.replace(tmp, path)
 
 
-def _replay_buffer_for(checkpoint: Path) -> Path | None:
-    m = re.fullmatch(r"(.*)_(\d+)_steps\.zip", checkpoint.name)
-    if not m:
+def latest_checkpoint(out: str | Path) -> dict | None:
+    """The state of the run's last complete checkpoint (``checkpoints/latest.json``: ``num_timesteps``,
+    ``session``, ``dir``, cumulative ``wall_s`` ...), or None.  The pointer is written last and atomically,
+    so a run killed while saving falls back to the checkpoint before."""
+    p = Path(out) / "checkpoints" / "latest.json"
+    if not p.exists():
         return None
-    p = checkpoint.with_name(f"{m.group(1)}_replay_buffer_{m.group(2)}_steps.pkl")
-    return p if p.exists() else None
+    try:
+        state = json.loads(p.read_text())
+    except json.JSONDecodeError:
+        return None
+    d = Path(out) / "checkpoints" / state["dir"]
+    return state if (d / "model.zip").exists() else None
 
 
-def _tqdm_progress_callback(total: int):
+def _tqdm_progress_callback(total: int, done: int):
     """A tqdm progress bar over environment steps (SB3's own ``progress_bar=True`` needs ``rich``, which
     is not a dependency of this project)."""
     from stable_baselines3.common.callbacks import BaseCallback
@@ -218,7 +230,7 @@ def _tqdm_progress_callback(total: int):
 
     class TqdmProgress(BaseCallback):
         def _on_training_start(self) -> None:
-            self.bar = tqdm(total=total, desc="training", unit="step", dynamic_ncols=True)
+            self.bar = tqdm(total=total, initial=done, desc="training", unit="step", dynamic_ncols=True)
 
         def _on_step(self) -> bool:
             self.bar.update(self.training_env.num_envs)
@@ -230,22 +242,128 @@ def _tqdm_progress_callback(total: int):
     return TqdmProgress()
 
 
-def _save_vecnormalize_callback():
-    """EvalCallback ``callback_on_new_best``: store the VecNormalize statistics next to best_model.zip."""
+class _Session:
+    """Book-keeping of one (re)start of a training run: wall time so far, validation history and best,
+    checkpoint saving.  Shared by the callbacks."""
+
+    def __init__(self, config: TrainConfig, out: Path, session: int, prior: dict | None, total: int):
+        self.c, self.out, self.session, self.total = config, out, session, total
+        self.t0 = time.perf_counter()
+        self.wall_before = float(prior["wall_s"]) if prior else 0.0
+        self.val_wall_before = float(prior["validation_wall_s"]) if prior else 0.0
+        self.val_wall = 0.0
+        self.start_step = int(prior["num_timesteps"]) if prior else 0
+        vp = out / "validation.json"
+        self.validation = (
+            json.loads(vp.read_text()) if (prior and vp.exists()) else {"history": [], "best": None}
+        )
+        self.validation["seeds"] = VALIDATION.first(config.eval_episodes)
+
+    def wall(self) -> float:
+        return self.wall_before + time.perf_counter() - self.t0
+
+    def validation_wall(self) -> float:
+        return self.val_wall_before + self.val_wall
+
+    def log(self, model, what: str) -> None:
+        steps = int(model.num_timesteps)
+        sps = (steps - self.start_step) / max(1e-9, time.perf_counter() - self.t0)
+        best = self.validation["best"]
+        b = f", best validation {best['mean_return']:.2f} at {best['timesteps']}" if best else ""
+        print(
+            f"[{self.c.env_id} {self.c.algo} run {self.c.seed}] {steps}/{self.total} steps, "
+            f"{sps:.0f} steps/s this session{b} ({what})",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    def validate(self, model) -> dict:
+        """Play the validation seeds with the current policy (deterministic, frozen normalisation) through
+        the benchmark's own episode loop; keep the best model in ``best/``."""
+        from gfb_agents.evaluate import LearnedPolicy, evaluate
+
+        t = time.perf_counter()
+        pol = LearnedPolicy.from_model(
+            model, self.c.algo, model.get_vec_normalize_env(), self.c.frame_stack, name="validation"
+        )
+        res = evaluate(self.c.env_id, pol, self.validation["seeds"], env_kwargs=self.c.env_kwargs)
+        rets = np.array([r.episode_return for r in res])
+        rec = {
+            "timesteps": int(model.num_timesteps),
+            "mean_return": float(rets.mean()),
+            "std_return": float(rets.std()),
+            "success_rate": float(np.mean([r.success for r in res])),
+            "touchdowns": int(sum(r.touchdown for r in res)),
+            "mean_damping_change": float(np.mean([r.damping_command_change for r in res])),
+        }
+        self.validation["history"].append(rec)
+        best = self.validation["best"]
+        if best is None or rec["mean_return"] > best["mean_return"]:
+            self.validation["best"] = rec
+            bd = self.out / "best"
+            bd.mkdir(exist_ok=True)
+            model.save(str(bd / "model.zip"))
+            vn = model.get_vec_normalize_env()
+            if vn is not None:
+                vn.save(str(bd / "vecnormalize.pkl"))
+            _atomic_write_json(bd / "best.json", {**rec, "validation_seeds": self.validation["seeds"]})
+        self.val_wall += time.perf_counter() - t
+        _atomic_write_json(self.out / "validation.json", self.validation)
+        return rec
+
+    def checkpoint(self, model) -> None:
+        """Model, VecNormalize, SAC replay buffer and the step count in ``checkpoints/step_<N>/``, then
+        the pointer ``latest.json``; older checkpoints beyond ``keep_checkpoints`` are deleted."""
+        n = int(model.num_timesteps)
+        root = self.out / "checkpoints"
+        d = root / f"step_{n:09d}"
+        d.mkdir(parents=True, exist_ok=True)
+        model.save(str(d / "model.zip"))
+        vn = model.get_vec_normalize_env()
+        if vn is not None:
+            vn.save(str(d / "vecnormalize.pkl"))
+        if hasattr(model, "save_replay_buffer"):
+            model.save_replay_buffer(str(d / "replay_buffer.pkl"))
+        state = {
+            "dir": d.name,
+            "num_timesteps": n,
+            "session": self.session,
+            "wall_s": self.wall(),
+            "validation_wall_s": self.validation_wall(),
+        }
+        _atomic_write_json(d / "state.json", state)
+        _atomic_write_json(root / "latest.json", state)
+        old = sorted(p for p in root.glob("step_*") if p.is_dir() and p.name != d.name)
+        for p in old[: max(0, len(old) - (self.c.keep_checkpoints - 1))]:
+            shutil.rmtree(p, ignore_errors=True)
+
+
+def _session_callback(sess: _Session, total: int):
+    """Validation every ``eval_freq`` and a checkpoint every ``checkpoint_freq`` env steps (validation
+    first, so a checkpoint's validation history is complete)."""
     from stable_baselines3.common.callbacks import BaseCallback
 
-    class SaveVecNormalizeOnBest(BaseCallback):
-        def __init__(self, path: Path):
-            super().__init__()
-            self.path = path
+    c = sess.c
+
+    class SessionCallback(BaseCallback):
+        def _on_training_start(self) -> None:
+            n = int(self.model.num_timesteps)
+            self.next_val = (n // c.eval_freq + 1) * c.eval_freq
+            self.next_ckpt = (n // c.checkpoint_freq + 1) * c.checkpoint_freq
 
         def _on_step(self) -> bool:
-            venv = self.model.get_vec_normalize_env()
-            if venv is not None:
-                venv.save(str(self.path))
+            n = int(self.model.num_timesteps)
+            if n >= self.next_val:
+                sess.validate(self.model)
+                self.next_val = (n // c.eval_freq + 1) * c.eval_freq
+                sess.log(self.model, "validated")
+            if n >= self.next_ckpt:
+                sess.checkpoint(self.model)
+                self.next_ckpt = (n // c.checkpoint_freq + 1) * c.checkpoint_freq
+                sess.log(self.model, "checkpoint")
             return True
 
-    return SaveVecNormalizeOnBest
+    return SessionCallback()
 
 
 def _check_count(name: str, v: Any, allow_none: bool = False) -> None:
@@ -260,33 +378,40 @@ class TrainConfig:
     """One training run, validated when made (every field is a ``python -m gfb_agents.train`` option).
 
     Attributes:
-        algo: ``"ppo"`` or ``"sac"``.
+        algo: ``"ppo"``, ``"sac"`` or ``"recurrentppo"`` (sb3-contrib, an LSTM policy: memory).
         env_id: a registered ``gfb_env/...`` id.
-        timesteps: total env steps (None: ``n_timesteps`` of the YAML).
-        seed: seeds Python, NumPy, torch; training env ``i`` gets ``seed + i``, evaluation ``seed + 10 000``.
+        timesteps: total env steps of the run (None: ``n_timesteps`` of the YAML).
+        seed: the independent training run ``r`` (0, 1, ...): seeds Python, NumPy and torch with ``r``;
+            training env ``i`` of session ``k`` is reset with ``gfb_agents.seeds.train_env_seed(r, i, k)``.
         n_envs: parallel training envs (None: the YAML's ``n_envs``).
-        out: output directory (None: ``runs/<task>_<algo>_s<seed>``).
-        resume: checkpoint ``.zip`` to continue from (its VecNormalize statistics saved next to it).
+        out: the run's directory (None: ``runs/<env>_<algo>/seed<r>``).
         hyperparams: zoo-style YAML (None: ``hyperparams/<algo>.yml`` of the package).
         env_kwargs: keyword arguments of ``gymnasium.make``.
-        eval_freq, eval_episodes, checkpoint_freq: evaluation and checkpoint cadence in env steps.
+        eval_freq: env steps between validations (on the first ``eval_episodes`` validation seeds; the
+            best is kept in ``best/``).
+        eval_episodes: validation episodes per validation.
+        checkpoint_freq: env steps between checkpoints (model, VecNormalize, SAC replay buffer, step).
+        keep_checkpoints: checkpoints kept on disk (the newest; SAC's replay buffer is large).
+        frame_stack: stack the last ``k`` observations (SB3 ``VecFrameStack``; 1 = none): memory for
+            PPO / SAC.
         progress_bar, tensorboard, verbose: output.
         torch_threads: torch CPU threads (1: the env is the bottleneck and cores are shared).
         vec_env: ``"dummy"``, ``"subproc"`` or ``"native"`` for the training envs (:func:`make_vec_env_for`).
     """
 
     algo: str
-    env_id: str = "gfb_env/RunUpRandomized-v0"
+    env_id: str = "gfb_env/RunUpRandomized-v1"
     timesteps: int | None = None
     seed: int = 0
     n_envs: int | None = None
     out: Path | None = None
-    resume: Path | None = None
     hyperparams: Path | None = None
     env_kwargs: dict = field(default_factory=dict)
-    eval_freq: int = 5_000
-    eval_episodes: int = 10
+    eval_freq: int = 20_000
+    eval_episodes: int = 20
     checkpoint_freq: int = 20_000
+    keep_checkpoints: int = 2
+    frame_stack: int = 1
     progress_bar: bool = True
     tensorboard: bool = True
     verbose: int = 0
@@ -307,13 +432,22 @@ class TrainConfig:
             )
         _check_count("timesteps", self.timesteps, allow_none=True)
         _check_count("n_envs", self.n_envs, allow_none=True)
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
-        for name in ("eval_freq", "eval_episodes", "checkpoint_freq", "torch_threads"):
+        if (
+            isinstance(self.seed, bool)
+            or not isinstance(self.seed, int)
+            or not 0 <= self.seed < seeds_mod.MAX_TRAIN_RUNS
+        ):
+            raise ValueError(f"seed must be an integer in [0, {seeds_mod.MAX_TRAIN_RUNS}), got {self.seed!r}")
+        for name in ("eval_freq", "eval_episodes", "checkpoint_freq", "torch_threads", "keep_checkpoints"):
             _check_count(name, getattr(self, name))
+        _check_count("frame_stack", self.frame_stack)
+        if self.frame_stack > 1 and algo == "recurrentppo":
+            raise ValueError("frame_stack and recurrentppo exclude each other (the LSTM is the memory)")
+        if self.n_envs is not None and self.n_envs > seeds_mod.MAX_TRAIN_ENVS:
+            raise ValueError(f"n_envs must be at most {seeds_mod.MAX_TRAIN_ENVS}, got {self.n_envs}")
         if self.vec_env not in VEC_ENVS:
             raise ValueError(f"vec_env must be one of {VEC_ENVS}, got {self.vec_env!r}")
-        for name in ("out", "resume", "hyperparams"):
+        for name in ("out", "hyperparams"):
             v = getattr(self, name)
             if v is not None:
                 object.__setattr__(self, name, Path(v))
@@ -327,15 +461,33 @@ class TrainConfig:
         """``RunUp`` of ``gfb_env/RunUp-v0``."""
         return self.env_id.split("/")[-1].split("-v")[0]
 
+    @property
+    def experiment_name(self) -> str:
+        """``RunUp-v1_ppo`` (``_fs4`` with a frame stack of 4): the default folder of the runs."""
+        fs = f"_fs{self.frame_stack}" if self.frame_stack > 1 else ""
+        return f"{self.env_id.split('/')[-1]}_{self.algo}{fs}"
+
+    def run_dir(self) -> Path:
+        return self.out if self.out is not None else Path("runs") / self.experiment_name / f"seed{self.seed}"
+
     def as_dict(self) -> dict[str, Any]:
         return {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(self).items()}
 
 
+def _comparable(cfg: dict) -> dict:
+    """The fields a resumed run must share with the run it continues."""
+    keep = ("algo", "env_id", "seed", "env_kwargs", "frame_stack", "hyperparams", "vec_env", "n_envs")
+    return {k: cfg.get(k) for k in keep}
+
+
 def train(config: TrainConfig, command: str | None = None) -> Path:
-    """Train and save; returns the output directory (see the module docstring for its contents)."""
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
+    """Train one run, resuming from its last checkpoint if there is one; returns the run's directory.
+
+    A rerun of a finished run (``run.json`` with ``timesteps >= total``, not interrupted) does nothing.
+    A rerun with a different configuration (algo, env, seed, env kwargs, frame stack, n_envs) than the
+    checkpoint's is refused (ValueError): delete the folder to start over."""
     from stable_baselines3.common.utils import set_random_seed
-    from stable_baselines3.common.vec_env import VecNormalize
+    from stable_baselines3.common.vec_env import VecFrameStack, VecNormalize
 
     c = config
     algo, env_id, seed, env_kwargs, task = c.algo, c.env_id, c.seed, c.env_kwargs, c.task
@@ -345,161 +497,201 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
     n_envs = int(c.n_envs if c.n_envs is not None else zoo.get("n_envs", 1))
     if total <= 0:
         raise ValueError(f"timesteps must be positive, got {total}")
-    if n_envs < 1:
-        raise ValueError(f"n_envs must be >= 1, got {n_envs}")
-    out = c.out if c.out is not None else Path("runs") / f"{task}_{algo}_s{seed}"
-    resume, tensorboard, verbose = c.resume, c.tensorboard, c.verbose
+    if not 1 <= n_envs <= seeds_mod.MAX_TRAIN_ENVS:
+        raise ValueError(f"n_envs must lie in [1, {seeds_mod.MAX_TRAIN_ENVS}], got {n_envs}")
+    out = c.run_dir()
+    tensorboard, verbose = c.tensorboard, c.verbose
+    prior = latest_checkpoint(out)
+    prev_run = json.loads((out / "run.json").read_text()) if (out / "run.json").exists() else None
+    if prev_run is not None and prior is not None:
+        want = _comparable({**c.as_dict(), "n_envs": n_envs})
+        have = _comparable({**prev_run.get("config", {}), "n_envs": prev_run.get("n_envs")})
+        if want != have:
+            diff = sorted(k for k in want if want[k] != have[k])
+            raise ValueError(f"{out} holds a run with other settings ({', '.join(diff)}); use another --out")
+    if (
+        prev_run is not None
+        and not prev_run.get("interrupted")
+        and int(prev_run.get("timesteps", 0)) >= total
+    ):
+        print(
+            f"{out}: already trained ({prev_run['timesteps']} >= {total} steps); nothing to do",
+            file=sys.stderr,
+        )
+        return out
+    session = int(prior["session"]) + 1 if prior else 0
     out.mkdir(parents=True, exist_ok=True)
-    for sub in ("checkpoints", "eval", "monitor"):
-        (out / sub).mkdir(exist_ok=True)
+    (out / "monitor").mkdir(exist_ok=True)
 
     import torch
 
     torch.set_num_threads(c.torch_threads)
-    set_random_seed(seed)
-    monitor_dir = out / "monitor"
-    if resume is not None:
-        # keep the earlier runs' logs for the learning curve: new Monitor files in a subfolder, the
-        # earlier evaluations under another name (EvalCallback rewrites evaluations.npz)
-        monitor_dir = out / "monitor" / f"resumed_{int(time.time())}"
-        monitor_dir.mkdir(parents=True, exist_ok=True)
-        ev = out / "eval" / "evaluations.npz"
-        if ev.exists():
-            ev.rename(out / "eval" / f"evaluations_before_{int(time.time())}.npz")
-    venv = make_vec_env_for(env_id, n_envs, seed, monitor_dir, env_kwargs, vec_env=c.vec_env)
-    eval_base = make_vec_env_for(env_id, 1, seed + 10_000, None, env_kwargs)
+    set_random_seed(seed + session * seeds_mod.MAX_TRAIN_RUNS)  # torch / numpy / random: new per session
+    monitor_dir = out / "monitor" if session == 0 else out / "monitor" / f"session{session}"
+    monitor_dir.mkdir(parents=True, exist_ok=True)
+    env_seed = seeds_mod.train_env_seed(seed, 0, session)  # env i: env_seed + i (train_env_seed(seed, i))
+    venv = make_vec_env_for(env_id, n_envs, env_seed, monitor_dir, env_kwargs, vec_env=c.vec_env)
     norm = zoo["normalize"]
-    cls = _algo_class(algo)
-    if resume is not None:
-        if not resume.exists():
-            raise FileNotFoundError(f"--resume checkpoint {resume} does not exist")
-        vn = _find_vecnormalize(resume)
+    cls = algo_class(algo)
+    tb = str(out / "tb") if tensorboard else None
+    if prior is not None:
+        ck = out / "checkpoints" / prior["dir"]
         if norm:
-            if vn is None:
-                raise FileNotFoundError(f"no VecNormalize statistics saved next to {resume}")
-            venv = VecNormalize.load(str(vn), venv)
+            venv = VecNormalize.load(str(ck / "vecnormalize.pkl"), venv)
             venv.training = True
-        model = cls.load(
-            str(resume), env=venv, device="cpu", tensorboard_log=str(out / "tb") if tensorboard else None
-        )
-        rb = _replay_buffer_for(resume)
-        if rb is not None and hasattr(model, "load_replay_buffer"):
-            model.load_replay_buffer(str(rb))
+        if c.frame_stack > 1:
+            venv = VecFrameStack(venv, c.frame_stack)
+        model = cls.load(str(ck / "model.zip"), env=venv, device="cpu", tensorboard_log=tb)
+        if (ck / "replay_buffer.pkl").exists() and hasattr(model, "load_replay_buffer"):
+            model.load_replay_buffer(str(ck / "replay_buffer.pkl"))
         done = int(model.num_timesteps)
+        print(f"{out}: resuming from {ck.name} ({done} steps, session {session})", file=sys.stderr)
     else:
         if norm:
             venv = VecNormalize(venv, gamma=kwargs.get("gamma", 0.99), **norm)
+        if c.frame_stack > 1:
+            venv = VecFrameStack(venv, c.frame_stack)
         model = cls(
             zoo.get("policy", "MlpPolicy"),
             venv,
             seed=seed,
             device="cpu",
             verbose=verbose,
-            tensorboard_log=str(out / "tb") if tensorboard else None,
+            tensorboard_log=tb,
             **kwargs,
         )
         done = 0
-    if norm:
-        eval_env = VecNormalize(
-            eval_base, training=False, norm_obs=norm.get("norm_obs", True), norm_reward=False
-        )
-    else:
-        eval_env = eval_base
-
-    per_env = max(1, n_envs)
-    on_best = _save_vecnormalize_callback()(out / "eval" / "best_vecnormalize.pkl") if norm else None
+    sess = _Session(c, out, session, prior, total)
     remaining = total - done
-    if remaining <= 0:
-        raise ValueError(f"the checkpoint already has {done} >= {total} timesteps; raise --timesteps")
-    callbacks = CallbackList(
-        [
-            CheckpointCallback(
-                save_freq=max(1, c.checkpoint_freq // per_env),
-                save_path=str(out / "checkpoints"),
-                name_prefix=f"{task}_{algo}",
-                save_vecnormalize=bool(norm),
-                save_replay_buffer=algo == "sac",
-            ),
-            EvalCallback(
-                eval_env,
-                callback_on_new_best=on_best,
-                n_eval_episodes=c.eval_episodes,
-                eval_freq=max(1, c.eval_freq // per_env),
-                log_path=str(out / "eval"),
-                best_model_save_path=str(out / "eval"),
-                deterministic=True,
-                verbose=verbose,
-            ),
-        ]
-        + ([_tqdm_progress_callback(remaining)] if c.progress_bar else [])
-    )
-    t0 = time.perf_counter()
+    callbacks = [_session_callback(sess, total)]
+    if c.progress_bar:
+        callbacks.append(_tqdm_progress_callback(total, done))
     interrupted = False
-    try:
-        model.learn(
-            total_timesteps=remaining,
-            callback=callbacks,
-            reset_num_timesteps=resume is None,
-            tb_log_name=f"{task}_{algo}",
-        )
-    except KeyboardInterrupt:
-        # Ctrl-C / SIGINT ends a long run cleanly: the model so far, its statistics and run.json are
-        # saved as for a finished run (with "interrupted": true), so it can be exported or resumed
-        interrupted = True
-        print(f"interrupted at {model.num_timesteps} timesteps; saving", file=sys.stderr)
-    wall = time.perf_counter() - t0
+    if remaining > 0:
+        try:
+            model.learn(
+                total_timesteps=remaining,
+                callback=callbacks,
+                reset_num_timesteps=prior is None,
+                tb_log_name=f"{task}_{algo}",
+            )
+        except KeyboardInterrupt:
+            # Ctrl-C / SIGINT ends a long run cleanly: a checkpoint at this step (a rerun resumes here),
+            # the model so far and run.json (with "interrupted": true)
+            interrupted = True
+            print(f"interrupted at {model.num_timesteps} timesteps; saving", file=sys.stderr)
+    if not interrupted:
+        # model selection needs the final policy validated too
+        hist = sess.validation["history"]
+        if not hist or hist[-1]["timesteps"] != int(model.num_timesteps):
+            sess.validate(model)
+    sess.checkpoint(model)
     model.save(str(out / "model.zip"))
     if norm:
         model.get_vec_normalize_env().save(str(out / "vecnormalize.pkl"))
-    final = _final_eval(out)
+    wall = sess.wall()
+    steps = int(model.num_timesteps)
+    val_wall = sess.validation_wall()
+    sessions = list(prev_run.get("sessions", [])) if (prev_run and prior) else []
+    sessions.append(
+        {
+            "session": session,
+            "env_seed": env_seed,
+            "start_timesteps": done,
+            "end_timesteps": steps,
+            "wall_time_s": round(time.perf_counter() - sess.t0, 1),
+        }
+    )
     info = {
         "algo": algo,
         "env_id": env_id,
         "env_kwargs": env_kwargs,
         "seed": seed,
         "n_envs": n_envs,
-        "timesteps": int(model.num_timesteps),
+        "frame_stack": c.frame_stack,
+        "timesteps": steps,
+        "total_timesteps": total,
         "wall_time_s": round(wall, 1),
-        "resumed_from": str(resume) if resume else None,
+        "validation_wall_time_s": round(val_wall, 1),
+        # throughput of the whole run (all sessions): env steps per second of wall time, and without
+        # the time spent playing the validation episodes
+        "env_steps_per_s": round(steps / max(wall, 1e-9), 1),
+        "env_steps_per_s_excluding_validation": round(steps / max(wall - val_wall, 1e-9), 1),
+        "sessions": sessions,
+        "validation_seeds": sess.validation["seeds"],
+        "best_validation": sess.validation["best"],
+        "model": "best/model.zip is the checkpoint with the best validation mean return",
         "command": command or "python -m gfb_agents.train " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
         "hyperparams": {
             k: (v if isinstance(v, (int, float, str, bool)) or v is None else repr(v)) for k, v in hp.items()
         },
-        "config": c.as_dict(),
-        "final_eval": final,
+        "config": {**c.as_dict(), "n_envs": n_envs},
         "interrupted": interrupted,
+        "cpu_count": os.cpu_count(),
     }
-    prev = out / "run.json"
-    if resume is not None and prev.exists():
-        info["previous_runs"] = [json.loads(prev.read_text())]
-    prev.write_text(jsonio.dumps(info, indent=2))
-    plot_learning_curve(out, out / "learning_curve.png", title=f"{algo.upper()} on {env_id} (seed {seed})")
+    _atomic_write_json(out / "run.json", info)
+    plot_learning_curve(out, out / "learning_curve.png", title=f"{algo.upper()} on {env_id} (run {seed})")
     venv.close()
-    eval_env.close()
+    sess.log(model, "done" if not interrupted else "interrupted")
     return out
 
 
-def _final_eval(out: Path) -> dict:
-    p = out / "eval" / "evaluations.npz"
-    if not p.exists():
-        return {}
-    d = np.load(p)
-    r = d["results"]
-    if len(r) == 0:
-        return {}
-    means = r.mean(axis=1)
-    i = int(np.argmax(means))
-    return {
-        "last_mean_return": float(means[-1]),
-        "last_std_return": float(r[-1].std()),
-        "best_mean_return": float(means[i]),
-        "best_timesteps": int(d["timesteps"][i]),
-        "eval_episodes": int(r.shape[1]),
-    }
+def _train_point(**cfg: Any) -> dict:
+    """One run of a multi-seed sweep (in a worker): the run's summary from its ``run.json``."""
+    set_thread_defaults()
+    cfg = dict(cfg)
+    command = cfg.pop("command", None)
+    out = train(TrainConfig(**cfg), command)
+    meta = json.loads((out / "run.json").read_text())
+    keep = ("seed", "timesteps", "wall_time_s", "env_steps_per_s", "best_validation", "interrupted")
+    return {"out": str(out), **{k: meta.get(k) for k in keep}}
+
+
+def train_seeds(
+    config: TrainConfig,
+    seeds: list[int],
+    n_jobs: int = 1,
+    scheduler: str | None = None,
+    command: str | None = None,
+) -> list[dict]:
+    """Train ``config`` once per training seed in ``seeds`` (run ``r`` in ``<out>/seed<r>``, ``out``
+    defaulting to ``runs/<env>_<algo>``), in parallel with joblib (``n_jobs``) or on a Dask cluster
+    (``scheduler``: the workers need this package and a shared ``out``).  Every run resumes from its own
+    checkpoint, so rerunning the same command continues an interrupted sweep.  Returns one record per
+    run (``{"point", "result", "error"}`` of :func:`gfb_env.sweeps.run_sweep`); a failed run does not
+    stop the others."""
+    from gfb_env.sweeps import run_sweep
+
+    root = config.out if config.out is not None else Path("runs") / config.experiment_name
+    points = []
+    for r in seeds:
+        d = {**config.as_dict(), "seed": int(r), "out": str(Path(root) / f"seed{r}"), "command": command}
+        if len(seeds) > 1 and n_jobs != 1:
+            d["progress_bar"] = False  # interleaved bars from workers are unreadable; the log lines stay
+        points.append(d)
+    return run_sweep(_train_point, points, n_jobs=n_jobs, scheduler=scheduler, desc="training runs")
+
+
+def _parse_seeds(text: str) -> list[int]:
+    """``"0-4"`` or ``"0,1,7"`` -> a sorted list of distinct run indices."""
+    out: set[int] = set()
+    try:
+        for part in text.split(","):
+            if "-" in part:
+                a, b = part.split("-", 1)
+                out.update(range(int(a), int(b) + 1))
+            else:
+                out.add(int(part))
+    except ValueError:
+        raise ValueError(f"--seeds must look like 0-4 or 0,1,7, got {text!r}") from None
+    if not out or min(out) < 0 or max(out) >= seeds_mod.MAX_TRAIN_RUNS:
+        raise ValueError(f"--seeds must name runs in [0, {seeds_mod.MAX_TRAIN_RUNS}), got {text!r}")
+    return sorted(out)
 
 
 def plot_learning_curve(run_dir: str | Path, path: str | Path, title: str = "") -> Path:
-    """Learning curve from the Monitor CSVs (episode returns, rolling mean) and the EvalCallback log."""
+    """Learning curve from the Monitor CSVs (training episode returns, rolling mean) and the validation
+    history (``validation.json``: mean +- std return on the validation seeds)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -525,33 +717,19 @@ def plot_learning_curve(run_dir: str | Path, path: str | Path, title: str = "") 
         w = max(1, min(50, len(ret) // 10))
         roll = np.convolve(ret, np.ones(w) / w, mode="valid")
         ax.plot(steps[w - 1 :], roll, "-", color="C0", label=f"rolling mean ({w})")
-    files = sorted((run_dir / "eval").glob("evaluations_before_*.npz")) + [
-        run_dir / "eval" / "evaluations.npz"
-    ]
-    ts, res = [], []
-    for p in files:
-        if p.exists():
-            d = np.load(p)
-            if len(d["results"]):
-                ts.append(d["timesteps"])
-                res.append(d["results"])
-    if ts:
-        widths = {r.shape[1] for r in res}
-        if len(widths) == 1:
-            d = {"timesteps": np.concatenate(ts), "results": np.concatenate(res)}
-        else:
-            d = {"timesteps": ts[-1], "results": res[-1]}
-        if len(d["results"]):
-            m, s = d["results"].mean(axis=1), d["results"].std(axis=1)
+    vp = run_dir / "validation.json"
+    if vp.exists():
+        hist = sorted(json.loads(vp.read_text()).get("history", []), key=lambda h: h["timesteps"])
+        if hist:
             ax.errorbar(
-                d["timesteps"],
-                m,
-                yerr=s,
+                [h["timesteps"] for h in hist],
+                [h["mean_return"] for h in hist],
+                yerr=[h["std_return"] for h in hist],
                 fmt="o-",
                 color="C3",
                 ms=3,
                 capsize=2,
-                label="evaluation (deterministic)",
+                label="validation seeds (deterministic)",
             )
     ax.set_xlabel("environment steps")
     ax.set_ylabel("episode return")
@@ -568,23 +746,34 @@ def plot_learning_curve(run_dir: str | Path, path: str | Path, title: str = "") 
 def main(argv: list[str] | None = None) -> int:
     ap = OneLineParser(prog="python -m gfb_agents.train", description=__doc__.splitlines()[0])
     ap.add_argument("--algo", required=True, choices=ALGOS)
-    ap.add_argument("--env", default="gfb_env/RunUpRandomized-v0", help="registered env id")
+    ap.add_argument("--env", default="gfb_env/RunUpRandomized-v1", help="registered env id")
     ap.add_argument(
-        "--timesteps", type=int, default=None, help="total env steps (default: n_timesteps of the YAML)"
+        "--timesteps",
+        type=int,
+        default=None,
+        help="total env steps per run (default: n_timesteps of the YAML)",
     )
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=None, help="one training run (default 0)")
+    ap.add_argument(
+        "--seeds", default=None, help="several independent runs, e.g. 0-4 (each in <out>/seed<r>)"
+    )
+    ap.add_argument("--n-jobs", type=int, default=1, help="runs trained in parallel on this machine")
+    ap.add_argument(
+        "--scheduler", default=None, help="Dask scheduler address: train the runs on that cluster"
+    )
     ap.add_argument("--n-envs", type=int, default=None, help="parallel envs (default: the YAML's n_envs)")
     ap.add_argument(
-        "--resume", default=None, help="checkpoint .zip to continue from (VecNormalize stats next to it)"
+        "--out", default=None, help="experiment directory (default runs/<env>_<algo>); run r in <out>/seed<r>"
     )
-    ap.add_argument("--out", default=None, help="output directory (default runs/<task>_<algo>_s<seed>)")
     ap.add_argument(
         "--hyperparams", default=None, help="zoo-style YAML (default agents/hyperparams/<algo>.yml)"
     )
     ap.add_argument("--env-kwargs", default=None, help="JSON dict of keyword arguments for gymnasium.make")
-    ap.add_argument("--eval-freq", type=int, default=5_000, help="env steps between evaluations")
-    ap.add_argument("--eval-episodes", type=int, default=10)
+    ap.add_argument("--eval-freq", type=int, default=20_000, help="env steps between validations")
+    ap.add_argument("--eval-episodes", type=int, default=20, help="validation seeds per validation")
     ap.add_argument("--checkpoint-freq", type=int, default=20_000, help="env steps between checkpoints")
+    ap.add_argument("--keep-checkpoints", type=int, default=2, help="checkpoints kept on disk")
+    ap.add_argument("--frame-stack", type=int, default=1, help="stack the last k observations (memory)")
     ap.add_argument("--no-progress-bar", action="store_true")
     ap.add_argument("--no-tensorboard", action="store_true")
     ap.add_argument("--verbose", type=int, default=0)
@@ -611,6 +800,15 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"--env-kwargs is not valid JSON: {exc}")
         if not isinstance(env_kwargs, dict):
             ap.error("--env-kwargs must be a JSON object")
+    if a.seed is not None and a.seeds is not None:
+        ap.error("--seed and --seeds exclude each other")
+    try:
+        run_seeds = _parse_seeds(a.seeds) if a.seeds is not None else [0 if a.seed is None else a.seed]
+    except ValueError as exc:
+        ap.error(str(exc))
+    cpus = os.cpu_count() or 1
+    if a.scheduler is None and not (a.n_jobs == -1 or 1 <= a.n_jobs <= cpus):
+        ap.error(f"--n-jobs must be -1 or lie in [1, {cpus}] (this machine's cores), got {a.n_jobs}")
     if a.out is not None:
         try:  # before any training: an unwritable --out fails now, not at the first checkpoint
             check_output_dir(a.out, "--out")
@@ -624,26 +822,46 @@ def main(argv: list[str] | None = None) -> int:
             algo=a.algo,
             env_id=a.env,
             timesteps=a.timesteps,
-            seed=a.seed,
+            seed=run_seeds[0],
             n_envs=a.n_envs,
             out=a.out,
-            resume=a.resume,
             hyperparams=a.hyperparams,
             env_kwargs=env_kwargs,
             eval_freq=a.eval_freq,
             eval_episodes=a.eval_episodes,
             checkpoint_freq=a.checkpoint_freq,
+            keep_checkpoints=a.keep_checkpoints,
+            frame_stack=a.frame_stack,
             progress_bar=not a.no_progress_bar,
             tensorboard=not a.no_tensorboard,
             verbose=a.verbose,
             torch_threads=a.torch_threads,
             vec_env=a.vec_env,
         )
-        out = train(config, cmd)
+        load_hyperparams(config.algo, config.env_id, config.hyperparams)  # a missing entry fails now
+        recs = train_seeds(
+            config,
+            run_seeds,
+            n_jobs=a.n_jobs,
+            scheduler=a.scheduler,
+            command=cmd,
+        )
     except (ValueError, FileNotFoundError) as exc:
         ap.error(str(exc))
-    print(f"saved to {out}")
-    return 0
+    failed = 0
+    for rec in recs:
+        if rec["error"] is not None:
+            failed += 1
+            print(f"run {rec['point']['seed']}: FAILED: {rec['error']}", file=sys.stderr)
+        else:
+            r = rec["result"]
+            best = r["best_validation"] or {}
+            print(
+                f"run {r['seed']}: {r['out']} {r['timesteps']} steps, {r['wall_time_s']} s, "
+                f"{r['env_steps_per_s']} steps/s, best validation {best.get('mean_return')} at "
+                f"{best.get('timesteps')}"
+            )
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

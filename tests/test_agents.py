@@ -10,6 +10,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from gfb_agents import seeds
 from gfb_agents.evaluate import LearnedPolicy, run_episode, summarise
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.scripted import ControlSpec, MapInformedAgent, make_scripted_agents
@@ -75,7 +76,7 @@ def test_map_informed_uses_the_nominal_optimum():
 
 def _tiny_yaml(tmp_path, algo: str, env_id: str):
     hp = load_hyperparams(algo, env_id)
-    if algo == "ppo":
+    if algo in ("ppo", "recurrentppo"):
         hp.update(n_steps=64, batch_size=32, n_epochs=2)
     else:
         hp.update(learning_starts=50, batch_size=32, buffer_size=2000, train_freq=4, gradient_steps=1)
@@ -112,14 +113,30 @@ def test_train_save_reload_predictions_unchanged(tmp_path, algo):
 
     env_id = "gfb_env/RunUp-v0"
     out = _train_quick(tmp_path, algo, "run", eval_freq=128, checkpoint_freq=128)
-    for f in ("model.zip", "vecnormalize.pkl", "run.json", "learning_curve.png", "eval/evaluations.npz"):
+    for f in (
+        "model.zip",
+        "vecnormalize.pkl",
+        "run.json",
+        "learning_curve.png",
+        "validation.json",
+        "best/model.zip",
+        "best/vecnormalize.pkl",
+        "checkpoints/latest.json",
+    ):
         assert (out / f).exists(), f
     meta = json.loads((out / "run.json").read_text())
     assert meta["seed"] == 1 and meta["timesteps"] >= 256 and meta["algo"] == algo
+    assert meta["env_steps_per_s"] > 0 and meta["wall_time_s"] > 0
+    # training envs on TRAIN seeds, model selection on VALIDATION seeds, never a TEST seed
+    assert meta["sessions"][0]["env_seed"] == seeds.train_env_seed(1, 0, 0)
+    assert meta["validation_seeds"] == seeds.VALIDATION.first(1)
+    val = json.loads((out / "validation.json").read_text())
+    assert [h["timesteps"] for h in val["history"]] == [128, 256]
+    assert val["best"]["mean_return"] == max(h["mean_return"] for h in val["history"])
 
     env = gym.make(env_id)
     obs = np.stack([env.reset(seed=s)[0] for s in range(4)])
-    pol = LearnedPolicy(out)
+    pol = LearnedPolicy(out, which="final")
     a1, _ = pol.predict(obs, deterministic=True)
     # reference: SB3's own loading path (model + VecNormalize.load on a venv)
     cls = {"ppo": PPO, "sac": SAC}[algo]
@@ -134,46 +151,142 @@ def test_train_save_reload_predictions_unchanged(tmp_path, algo):
         vn.normalize_obs(obs), deterministic=True
     )
     np.testing.assert_array_equal(a_ref, a2)
-    # a learned policy plays an episode through the same evaluator as the scripted ones
-    res = run_episode(gym.make(env_id, max_episode_steps=10), pol, seed=0)
-    assert summarise([res])["episodes"] == 1
+    # the benchmark plays the validation-selected model, through the same evaluator as the scripted ones
+    best = LearnedPolicy(out)
+    assert best.model_path == out / "best" / "model.zip"
+    res = run_episode(gym.make(env_id, max_episode_steps=10), best, seed=0)
+    s = summarise([res])
+    assert s["episodes"] == 1 and math.isfinite(s["mean_damping_change"])
     env.close()
 
 
-def test_resume_from_checkpoint(tmp_path):
-    out = _train_quick(tmp_path, "ppo", "r", timesteps=128, seed=0, checkpoint_freq=128)
-    ckpts = sorted((out / "checkpoints").glob("*_steps.zip"))
-    assert (
-        ckpts
-        and (
-            out
-            / "checkpoints"
-            / ckpts[-1].name.replace("_128_steps", "_vecnormalize_128_steps").replace(".zip", ".pkl")
-        ).exists()
-    )
-    out2 = _train_quick(tmp_path, "ppo", "r", seed=0, resume=ckpts[-1])
-    meta = json.loads((out2 / "run.json").read_text())
-    assert meta["timesteps"] >= 256 and meta["resumed_from"].endswith(ckpts[-1].name)
+def test_a_run_stopped_after_a_checkpoint_resumes_to_the_same_total(tmp_path, monkeypatch):
+    """Kill a run (an exception out of learn(), as a crash would) after its 128-step checkpoint; the same
+    config again resumes from that checkpoint (new env seeds, same VecNormalize) and ends at 256 steps."""
+    from stable_baselines3 import PPO
+
+    from gfb_agents import train as train_mod
+
+    real_checkpoint = train_mod._Session.checkpoint
+
+    def crash_after_first(self, model):
+        real_checkpoint(self, model)
+        raise RuntimeError("killed")
+
+    monkeypatch.setattr(train_mod._Session, "checkpoint", crash_after_first)
+    with pytest.raises(RuntimeError, match="killed"):
+        _train_quick(tmp_path, "ppo", "r", timesteps=256, seed=0, checkpoint_freq=128, eval_freq=128)
+    monkeypatch.setattr(train_mod._Session, "checkpoint", real_checkpoint)
+    state = train_mod.latest_checkpoint(tmp_path / "r")
+    assert state["num_timesteps"] == 128 and not (tmp_path / "r" / "run.json").exists()
+    out = _train_quick(tmp_path, "ppo", "r", timesteps=256, seed=0, checkpoint_freq=128, eval_freq=128)
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["timesteps"] == 256 and PPO.load(str(out / "model.zip")).num_timesteps == 256
+    assert [x["start_timesteps"] for x in meta["sessions"]] == [128]
+    assert meta["sessions"][0]["env_seed"] == seeds.train_env_seed(0, 0, 1)  # a new session's seeds
+    assert meta["wall_time_s"] > 0
+    # the checkpoint's validation history was kept: one validation at 128 before the crash, one at 256
+    val = json.loads((out / "validation.json").read_text())
+    assert [h["timesteps"] for h in val["history"]] == [128, 256]
+    # rerunning a finished run does nothing; another configuration in the same folder is refused
+    t = (out / "run.json").stat().st_mtime_ns
+    _train_quick(tmp_path, "ppo", "r", timesteps=256, seed=0)
+    assert (out / "run.json").stat().st_mtime_ns == t
+    with pytest.raises(ValueError, match="other settings"):
+        _train_quick(tmp_path, "ppo", "r", timesteps=512, seed=0, n_envs=2)
+    # a longer total continues the finished run
+    out = _train_quick(tmp_path, "ppo", "r", timesteps=320, seed=0, checkpoint_freq=128, eval_freq=128)
+    assert json.loads((out / "run.json").read_text())["timesteps"] >= 320
+    assert len(list((out / "checkpoints").glob("step_*"))) == 2  # keep_checkpoints
 
 
-def test_interrupted_training_is_saved_like_a_finished_run(tmp_path, monkeypatch):
-    """Ctrl-C during learn(): model, statistics and run.json (interrupted, actual timesteps) are saved."""
-    from stable_baselines3.common.callbacks import CheckpointCallback
+def test_interrupted_training_is_saved_and_resumable(tmp_path, monkeypatch):
+    """Ctrl-C during learn(): model, statistics, a checkpoint and run.json (interrupted, actual timesteps)
+    are saved; the same command again continues to the total."""
+    from stable_baselines3.common.callbacks import BaseCallback
 
-    def interrupt_after_64_steps(self):
-        if self.num_timesteps >= 64:
+    from gfb_agents import train as train_mod
+
+    calls = {"n": 0}
+
+    def on_step(self):
+        calls["n"] += 1
+        if self.num_timesteps >= 64 and calls["n"] < 1000:
+            calls["n"] = 1000
             raise KeyboardInterrupt
         return True
 
-    monkeypatch.setattr(CheckpointCallback, "_on_step", interrupt_after_64_steps)
+    monkeypatch.setattr(
+        train_mod,
+        "_tqdm_progress_callback",
+        lambda total, done: type("Stop", (BaseCallback,), {"_on_step": on_step})(),
+    )
     env_id = "gfb_env/RunUp-v0"
-    out = _train_quick(tmp_path, "sac", "run", eval_freq=1000, checkpoint_freq=1000)
+    out = _train_quick(tmp_path, "sac", "run", eval_freq=1000, checkpoint_freq=1000, progress_bar=True)
     meta = json.loads((out / "run.json").read_text())
     assert meta["interrupted"] is True
     assert 64 <= meta["timesteps"] < 256
     assert (out / "model.zip").exists() and (out / "vecnormalize.pkl").exists()
-    a, _ = LearnedPolicy(out).predict(gym.make(env_id).reset(seed=0)[0], deterministic=True)
+    state = train_mod.latest_checkpoint(out)
+    assert state["num_timesteps"] == meta["timesteps"]
+    assert (out / "checkpoints" / state["dir"] / "replay_buffer.pkl").exists()
+    a, _ = LearnedPolicy(out, which="final").predict(gym.make(env_id).reset(seed=0)[0], deterministic=True)
     assert np.all(np.isfinite(a))
+    monkeypatch.undo()
+    out = _train_quick(tmp_path, "sac", "run", eval_freq=1000, checkpoint_freq=1000)
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["timesteps"] == 256 and not meta["interrupted"] and len(meta["sessions"]) == 2
+
+
+@pytest.mark.parametrize("algo, frame_stack", [("recurrentppo", 1), ("ppo", 3)])
+def test_policies_with_memory_train_and_play_like_in_training(tmp_path, algo, frame_stack):
+    """RecurrentPPO and a frame-stacked PPO: a tiny run, then the saved policy replays the training
+    wrapper's view (VecNormalize + VecFrameStack / LSTM state) in the benchmark's episode loop."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecFrameStack, VecNormalize
+
+    env_id = "gfb_env/RunUp-v0"
+    out = _train_quick(tmp_path, algo, "m", timesteps=128, frame_stack=frame_stack, eval_freq=128)
+    pol = LearnedPolicy(out, which="final")
+    assert pol.algo == algo and pol.frame_stack == frame_stack
+    # reference: SB3's wrappers around a fresh env, stepped with the policy's own actions
+    venv = VecNormalize.load(str(out / "vecnormalize.pkl"), DummyVecEnv([lambda: gym.make(env_id)]))
+    venv.training, venv.norm_reward = False, False
+    if frame_stack > 1:
+        venv = VecFrameStack(venv, frame_stack)
+    venv.seed(5)
+    o = venv.reset()
+    env = gym.make(env_id)
+    raw, _ = env.reset(seed=5)
+    state_ref = state = None
+    start = np.array([True])
+    for _ in range(4):
+        a_ref, state_ref = pol.model.predict(o, state=state_ref, episode_start=start, deterministic=True)
+        a, state = pol.predict(raw, state=state, episode_start=start, deterministic=True)
+        np.testing.assert_allclose(np.asarray(a).reshape(-1), a_ref.reshape(-1), rtol=0, atol=1e-5)
+        o, _, _, _ = venv.step(a_ref)
+        raw, *_ = env.step(a_ref[0])
+        start = np.array([False])
+    res = run_episode(gym.make(env_id, max_episode_steps=6), pol, seed=0)
+    assert res.steps == 6 and math.isfinite(res.episode_return)
+
+
+def test_train_cli_trains_several_seeds_and_the_ladder_registers_them(tmp_path):
+    from gfb_agents import ladder
+
+    env_id = "gfb_env/RunUp-v0"
+    yml = _tiny_yaml(tmp_path, "ppo", env_id)
+    args = ["--algo", "ppo", "--env", env_id, "--timesteps", "64", "--seeds", "0-1", "--n-envs", "1"]
+    args += ["--out", str(tmp_path / "exp"), "--hyperparams", str(yml), "--eval-episodes", "1"]
+    args += ["--no-progress-bar", "--no-tensorboard", "--env-kwargs", '{"max_episode_steps": 8}']
+    assert train_main(args) == 0
+    for r in (0, 1):
+        meta = json.loads((tmp_path / "exp" / f"seed{r}" / "run.json").read_text())
+        assert meta["seed"] == r and meta["timesteps"] == 64 and meta["env_steps_per_s"] > 0
+    with ladder.scoped():
+        e = ladder.register_learned(tmp_path / "exp", name="ppo_tiny")
+        assert e.kind == "learned" and e.runs == 2 and e.tasks == (env_id,)
+        pol = e.build(gym.make(env_id), run=1)
+        assert pol.name == "ppo_tiny" and "seed1" in pol._args[0]
 
 
 def _exit_2_one_line(main, argv, fragment, capsys):
@@ -199,6 +312,9 @@ def _exit_2_one_line(main, argv, fragment, capsys):
         (["--algo", "ppo", "--env-kwargs", "{not json"], "--env-kwargs is not valid JSON"),
         (["--algo", "ppo", "--env-kwargs", "[1]"], "--env-kwargs must be a JSON object"),
         (["--algo", "ppo", "--out", "{file}/run"], "--out"),
+        (["--algo", "ppo", "--seeds", "3-x"], "--seeds must look like"),
+        (["--algo", "ppo", "--seed", "1", "--seeds", "0-4"], "exclude each other"),
+        (["--algo", "recurrentppo", "--frame-stack", "4"], "frame_stack and recurrentppo"),
     ],
 )
 def test_train_cli_rejects_bad_arguments(capsys, tmp_path, argv, fragment):
@@ -310,6 +426,7 @@ def test_committed_policies_load_and_act():
         ({"algo": "sac", "n_envs": 1.5}, "n_envs"),
         ({"algo": "sac", "eval_freq": 0}, "eval_freq"),
         ({"algo": "sac", "seed": -1}, "seed"),
+        ({"algo": "sac", "frame_stack": 0}, "frame_stack"),
         ({"algo": "sac", "env_kwargs": "x"}, "env_kwargs"),
     ],
 )
@@ -318,3 +435,4 @@ def test_train_config_refuses_bad_fields_by_name(kwargs, name):
         TrainConfig(**kwargs)
     cfg = TrainConfig("PPO", "gfb_env/RunUp-v0", out="runs/x")
     assert cfg.algo == "ppo" and cfg.task == "RunUp" and cfg.as_dict()["out"] == "runs/x"
+    assert TrainConfig("sac", "gfb_env/RunUp-v1", seed=3).run_dir().as_posix() == "runs/RunUp-v1_sac/seed3"

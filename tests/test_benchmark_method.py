@@ -255,3 +255,25 @@ def test_table_rows_from_constructed_episodes():
     assert by["half"]["wall_s"] == 2.0 and by["half"]["episodes"] == 8
     assert per_task[task]["floored_seeds"] == 0
     np.testing.assert_allclose(per_task[task]["agents"]["learn"]["normalized"], [[0.2] * 8, [0.6] * 8])
+
+
+def test_chunks_on_a_dask_cluster_equal_the_local_run_and_are_cached(tmp_path):
+    distributed = pytest.importorskip("dask.distributed")
+    from gfb_agents import ladder
+    from gfb_experiments.benchmark_agents import plan, run_chunks
+
+    kw = {"gfb_env/RunUp-v0": {"max_episode_steps": 4}}
+    with ladder.scoped():
+        chunks = plan(["gfb_env/RunUp-v0"], "validation", 2, 1, {"naive"}, kw)
+    assert {c.entry.name for c in chunks} == {"naive", "oracle"} and len(chunks) == 4
+    assert all(s in seeds.VALIDATION for c in chunks for s in c.seeds)
+    local = run_chunks(chunks, tmp_path / "local", progress=False)
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+    ) as cl:
+        remote = run_chunks(chunks, tmp_path / "dask", scheduler=cl, progress=False)
+    for c in chunks:
+        a = [e["episode_return"] for e in local[c]["episodes"]]
+        b = [e["episode_return"] for e in remote[c]["episodes"]]
+        assert a == b and len(a) == 1
+    assert len(list((tmp_path / "dask").rglob("run0_*.json"))) == 4

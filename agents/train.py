@@ -580,11 +580,10 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
             # the model so far and run.json (with "interrupted": true)
             interrupted = True
             print(f"interrupted at {model.num_timesteps} timesteps; saving", file=sys.stderr)
-    if not interrupted:
-        # model selection needs the final policy validated too
-        hist = sess.validation["history"]
-        if not hist or hist[-1]["timesteps"] != int(model.num_timesteps):
-            sess.validate(model)
+    if not interrupted and remaining > 0:
+        # model selection needs the final policy validated too (the callback's last validation ran
+        # before the last policy update, even at the same step count)
+        sess.validate(model)
     sess.checkpoint(model)
     model.save(str(out / "model.zip"))
     if norm:

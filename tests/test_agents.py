@@ -131,7 +131,7 @@ def test_train_save_reload_predictions_unchanged(tmp_path, algo):
     assert meta["sessions"][0]["env_seed"] == seeds.train_env_seed(1, 0, 0)
     assert meta["validation_seeds"] == seeds.VALIDATION.first(1)
     val = json.loads((out / "validation.json").read_text())
-    assert [h["timesteps"] for h in val["history"]] == [128, 256]
+    assert [h["timesteps"] for h in val["history"]] == [128, 256, 256]  # the last: after the last update
     assert val["best"]["mean_return"] == max(h["mean_return"] for h in val["history"])
 
     env = gym.make(env_id)
@@ -185,9 +185,10 @@ def test_a_run_stopped_after_a_checkpoint_resumes_to_the_same_total(tmp_path, mo
     assert [x["start_timesteps"] for x in meta["sessions"]] == [128]
     assert meta["sessions"][0]["env_seed"] == seeds.train_env_seed(0, 0, 1)  # a new session's seeds
     assert meta["wall_time_s"] > 0
-    # the checkpoint's validation history was kept: one validation at 128 before the crash, one at 256
+    # the checkpoint's validation history was kept: one validation at 128 before the crash, then 256
+    # in the callback and 256 after the last update
     val = json.loads((out / "validation.json").read_text())
-    assert [h["timesteps"] for h in val["history"]] == [128, 256]
+    assert [h["timesteps"] for h in val["history"]] == [128, 256, 256]
     # rerunning a finished run does nothing; another configuration in the same folder is refused
     t = (out / "run.json").stat().st_mtime_ns
     _train_quick(tmp_path, "ppo", "r", timesteps=256, seed=0)

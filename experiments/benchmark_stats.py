@@ -42,6 +42,8 @@ __all__ = [
 
 #: a seed's oracle-naive gap is floored at this fraction of the task's median gap
 GAP_FLOOR_FRACTION = 0.1
+#: a median oracle-naive margin below this fraction of the returns' size counts as none (rounding)
+NO_HEADROOM_REL = 1e-9
 #: bootstrap replications (rliable's default is 50 000; 10 000 keeps the 2.5 % quantile to ~0.1 % of its
 #: spread and a table of ~50 rows to seconds)
 DEFAULT_REPS = 10_000
@@ -66,7 +68,9 @@ def normalized_scores(
         raise ValueError(f"floor_fraction must lie in [0, 1), got {floor_fraction!r}")
     gap = o - n
     med = float(np.median(gap)) if gap.size else math.nan
-    if not (math.isfinite(med) and med > 0):
+    # a median margin at the level of rounding (relative to the returns' size) is no scale either
+    scale = max(1.0, float(np.median(np.abs(n))), float(np.median(np.abs(o)))) if gap.size else 1.0
+    if not (math.isfinite(med) and med > NO_HEADROOM_REL * scale):
         return np.full(r.shape, math.nan), {
             "median_gap": med,
             "floor": math.nan,

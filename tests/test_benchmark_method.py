@@ -71,6 +71,9 @@ def test_normalisation_floors_a_vanishing_gap_and_flags_no_headroom():
     np.testing.assert_allclose(s, [0.5, 0.5, 0.5, 0.5, 0.5])  # 0.5 / floor 1.0, not 0.5 / 0.001
     s, info = normalized_scores(np.array([1.0, 2.0]), np.array([5.0, 5.0]), np.array([4.0, 5.0]))
     assert info["no_headroom"] and np.isnan(s).all()
+    tie = np.array([58.9, 58.9, 58.9])
+    s, info = normalized_scores(tie, tie, tie + 1e-12)  # a tie up to rounding: no scale
+    assert info["no_headroom"] and np.isnan(s).all()
     with pytest.raises(ValueError, match="episodes"):
         normalized_scores(np.zeros(3), np.zeros(4), np.ones(4))
 

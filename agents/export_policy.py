@@ -1,11 +1,15 @@
-"""Copy a trained policy from a run directory (``runs/...``, gitignored) into ``agents/policies/<name>/``.
+"""Copy trained policies from a training folder (``runs/...``, gitignored) into ``agents/policies/<name>/``.
 
-    python -m gfb_agents.export_policy RUN_DIR NAME [--which {final,best}]
+    python -m gfb_agents.export_policy RUN_DIR NAME [--which {best,final}]
 
-Copies ``model.zip`` and ``vecnormalize.pkl`` (final, or EvalCallback's best with its statistics), the
-learning curve, and writes ``policy.json`` (algo, env id, seed, command, wall time, timesteps, final
-evaluation, which model) and a ``README.md`` stating the same.  The evaluator
-(:class:`gfb_agents.evaluate.LearnedPolicy`) reads ``policy.json``.
+``RUN_DIR`` is one run (``runs/<env>_<algo>/seed<r>``, with ``run.json``) or an experiment of several
+training seeds (``runs/<env>_<algo>``, with ``seed*/run.json``).  For each run it copies ``model.zip`` and
+``vecnormalize.pkl`` -- the checkpoint selected on the validation seeds (``best/``, default) or the final
+model -- the learning curve, and writes ``policy.json`` (algo, env id, seed, frame stack, command, wall
+time, throughput, timesteps, best validation, which model) and a ``README.md`` stating the same.  Several
+runs land in ``<name>/seed<r>/``, so the ladder (:func:`gfb_agents.ladder.learned_entries`) reads them as
+one learned agent with one row per training seed.  The evaluator (:class:`gfb_agents.evaluate.LearnedPolicy`)
+reads ``policy.json``.
 """
 
 from __future__ import annotations
@@ -20,48 +24,54 @@ from gfb_env._cli_common import OneLineParser
 
 __all__ = ["export_policy"]
 
+_KEYS = (
+    "algo",
+    "env_id",
+    "env_kwargs",
+    "seed",
+    "n_envs",
+    "frame_stack",
+    "timesteps",
+    "wall_time_s",
+    "env_steps_per_s",
+    "env_steps_per_s_excluding_validation",
+    "command",
+    "hyperparams",
+    "best_validation",
+    "validation_seeds",
+    "sessions",
+    "interrupted",
+    # runs of the earlier layout
+    "final_eval",
+    "resumed_from",
+    "previous_runs",
+)
 
-def export_policy(
-    run_dir: str | Path, name: str, which: str = "final", root: str | Path = POLICIES_DIR
-) -> Path:
-    """Export ``run_dir``'s final (or best-evaluated) model to ``root / name``; returns the directory."""
-    run = Path(run_dir)
-    meta_p = run / "run.json"
-    if not meta_p.exists():
-        raise FileNotFoundError(f"{run} has no run.json (not a gfb_agents.train output directory)")
-    if which not in ("final", "best"):
-        raise ValueError(f"which must be 'final' or 'best', got {which!r}")
-    meta = json.loads(meta_p.read_text())
-    src_model = run / ("model.zip" if which == "final" else "eval/best_model.zip")
-    src_vn = run / ("vecnormalize.pkl" if which == "final" else "eval/best_vecnormalize.pkl")
+
+def _sources(run: Path, which: str) -> tuple[Path, Path]:
+    if which == "final":
+        return run / "model.zip", run / "vecnormalize.pkl"
+    if (run / "best" / "model.zip").exists():
+        return run / "best" / "model.zip", run / "best" / "vecnormalize.pkl"
+    # a run of the earlier layout (EvalCallback's best model)
+    return run / "eval" / "best_model.zip", run / "eval" / "best_vecnormalize.pkl"
+
+
+def _export_run(run: Path, dest: Path, name: str, which: str) -> Path:
+    meta = json.loads((run / "run.json").read_text())
+    src_model, src_vn = _sources(run, which)
     if not src_model.exists():
         raise FileNotFoundError(f"no {src_model}")
-    dest = Path(root) / name
     dest.mkdir(parents=True, exist_ok=True)
     shutil.copy2(src_model, dest / "model.zip")
     if src_vn.exists():
         shutil.copy2(src_vn, dest / "vecnormalize.pkl")
     if (run / "learning_curve.png").exists():
         shutil.copy2(run / "learning_curve.png", dest / "learning_curve.png")
-    keys = (
-        "algo",
-        "env_id",
-        "env_kwargs",
-        "seed",
-        "n_envs",
-        "timesteps",
-        "wall_time_s",
-        "command",
-        "hyperparams",
-        "final_eval",
-        "resumed_from",
-        "previous_runs",
-        "interrupted",
-    )
-    info = {k: meta.get(k) for k in keys if k in meta}
+    info = {k: meta.get(k) for k in _KEYS if k in meta}
     info["model"] = which
     (dest / "policy.json").write_text(jsonio.dumps(info, indent=2))
-    fe = meta.get("final_eval", {})
+    bv = meta.get("best_validation") or {}
     lines = [
         f"# {name}",
         "",
@@ -71,13 +81,12 @@ def export_policy(
         meta["command"],
         "```",
         "",
-        f"* seed {meta['seed']}, {meta['n_envs']} env(s), {meta['timesteps']} environment steps, "
-        f"wall time {meta['wall_time_s'] / 60:.1f} min on the shared 2-core CPU machine"
-        + (" (plus the runs it resumed, see `policy.json`)" if meta.get("resumed_from") else "")
+        f"* training seed {meta['seed']}, {meta['n_envs']} env(s), {meta['timesteps']} environment steps, "
+        f"wall time {meta['wall_time_s'] / 60:.1f} min"
+        + (f" ({meta['env_steps_per_s']} env steps/s)" if "env_steps_per_s" in meta else "")
         + (" (stopped by Ctrl-C before the requested total)" if meta.get("interrupted") else ""),
-        f"* evaluation during training (deterministic, {fe.get('eval_episodes', '?')} episodes per point): "
-        f"last mean return {fe.get('last_mean_return', float('nan')):.1f}, best "
-        f"{fe.get('best_mean_return', float('nan')):.1f} at {fe.get('best_timesteps', '?')} steps",
+        f"* model selection on the validation seeds: best mean return {bv.get('mean_return', '?')} at "
+        f"{bv.get('timesteps', '?')} steps (see `policy.json`)",
         "* files: `model.zip` (SB3), `vecnormalize.pkl` (observation statistics; load with "
         "`gfb_agents.evaluate.LearnedPolicy`), `learning_curve.png`, `policy.json`",
         "* benchmark results: `results/benchmark_agents.md`",
@@ -89,11 +98,28 @@ def export_policy(
     return dest
 
 
+def export_policy(
+    run_dir: str | Path, name: str, which: str = "best", root: str | Path = POLICIES_DIR
+) -> Path:
+    """Export the run (or every ``seed*/`` run) of ``run_dir`` to ``root / name``; returns that folder."""
+    run = Path(run_dir)
+    if which not in ("final", "best"):
+        raise ValueError(f"which must be 'final' or 'best', got {which!r}")
+    if (run / "run.json").exists():
+        return _export_run(run, Path(root) / name, name, which)
+    runs = sorted(d for d in run.glob("seed*") if (d / "run.json").exists()) if run.is_dir() else []
+    if not runs:
+        raise FileNotFoundError(f"{run} has no run.json nor seed*/run.json (not a gfb_agents.train output)")
+    for d in runs:
+        _export_run(d, Path(root) / name / d.name, name, which)
+    return Path(root) / name
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = OneLineParser(prog="python -m gfb_agents.export_policy", description=__doc__.splitlines()[0])
     ap.add_argument("run_dir")
-    ap.add_argument("name", help="directory name under agents/policies, e.g. WhirlRecovery_sac")
-    ap.add_argument("--which", choices=("final", "best"), default="final")
+    ap.add_argument("name", help="directory name under agents/policies, e.g. RunUpRandomized-v1_sac")
+    ap.add_argument("--which", choices=("final", "best"), default="best")
     a = ap.parse_args(argv)
     try:
         print(export_policy(a.run_dir, a.name, a.which))

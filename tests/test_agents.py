@@ -287,7 +287,18 @@ def test_train_cli_trains_several_seeds_and_the_ladder_registers_them(tmp_path):
         e = ladder.register_learned(tmp_path / "exp", name="ppo_tiny")
         assert e.kind == "learned" and e.runs == 2 and e.tasks == (env_id,)
         pol = e.build(gym.make(env_id), run=1)
-        assert pol.name == "ppo_tiny" and "seed1" in pol._args[0]
+        assert pol.name == "ppo_tiny" and pol.model_path == tmp_path / "exp" / "seed1" / "best" / "model.zip"
+    # export both runs (validation-selected models) as one committed multi-seed agent
+    from gfb_agents.export_policy import export_policy
+
+    dest = export_policy(tmp_path / "exp", "ppo_tiny", root=tmp_path / "policies")
+    assert sorted(p.name for p in dest.iterdir()) == ["seed0", "seed1"]
+    (entry,) = ladder.learned_entries(tmp_path / "policies")
+    assert entry.runs == 2 and entry.tasks == (env_id,)
+    obs = gym.make(env_id).reset(seed=0)[0]
+    exported = LearnedPolicy(dest / "seed1")
+    assert json.loads((dest / "seed1" / "policy.json").read_text())["model"] == "best"
+    np.testing.assert_array_equal(exported.predict(obs)[0], pol.predict(obs)[0])
 
 
 def _exit_2_one_line(main, argv, fragment, capsys):

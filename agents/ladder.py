@@ -10,16 +10,19 @@ exactly one ``naive`` and one ``oracle`` entry.
 Registering an agent (the interface for the v1 oracle, the rules and the learned agents)::
 
     from gfb_agents.ladder import AgentEntry, register, V1_TASKS
-    # make_oracle(env) -> Policy
-    register(AgentEntry("oracle", "oracle", V1_TASKS, make_oracle), replace=True)
+    # make_oracle(env) -> Policy; the built-in "oracle" keeps the v0 tasks
+    register(AgentEntry("oracle_v1", "oracle", V1_TASKS, make_oracle), supersede=True)
     register(AgentEntry("identify_shock", "rule", ("gfb_env/RunUpRandomized-v1",), make_rule))
     register_learned("runs/RunUpRandomized-v1_sac", name="sac")   # a gfb_agents.train output (seed*/)
 
 A factory is called as ``factory(env)`` with a fresh env of the task (``gymnasium.make(task,
-**env_kwargs)``, not reset) and returns a :class:`~gfb_agents.scripted.Policy`; it must read only the env's
-documented configuration (except an oracle's, which may also take the reset ``info`` through
-``observe_reset_info``).  Factories and entries must be picklable (module-level functions or
-``functools.partial`` of them): the evaluation sweep builds the agents in its worker processes.
+**env_kwargs)``, not yet reset) -- the very env the agent's episodes are then played on, so an oracle may
+keep it and read the episode's hidden parameters through the env's public accessors -- and returns a
+:class:`~gfb_agents.scripted.Policy`; a naive agent or a rule must read only the observation and the
+env's documented configuration.  The evaluation calls ``policy.reset()`` before each ``env.reset`` and,
+where the policy has one, ``policy.observe_reset_info(info)`` after it (oracles only).  Factories and
+entries must be picklable (module-level functions or ``functools.partial`` of them): the evaluation
+sweep builds the agents in its worker processes.
 
 A learned entry has one run per independent training seed (``run_paths``); the benchmark plays every run
 on the same test seeds and the statistics stratify by run.
@@ -33,6 +36,7 @@ oracle of ``gfb_agents.oracle`` is registered), and the committed learned polici
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import math
 from collections.abc import Callable, Iterable
@@ -49,6 +53,7 @@ __all__ = [
     "AgentEntry",
     "NaiveRampAgent",
     "register",
+    "set_tasks",
     "unregister",
     "registered",
     "scoped",
@@ -66,6 +71,8 @@ __all__ = [
 ]
 
 KINDS = ("naive", "rule", "oracle", "learned")
+#: name of the v1 observation entry of the commanded speed (``gfb_env.envs.units.SPEED_COMMAND``)
+SPEED_COMMAND = "speed_command"
 
 try:  # the task lists have one owner
     from gfb_env.envs import ENV_IDS, V0_IDS
@@ -138,7 +145,8 @@ class NaiveRampAgent(ScriptedPolicy):
     Commands ``D_W = damping`` (1, the paper's Fig. 5 value) throughout and ramps at the motor limit
     toward ``min(commanded speed, (1 - margin) Lambda_c(D_W) of the nominal bearing)``, then holds.  The
     commanded speed is read from the observation where the task publishes one
-    (``env.observation_layout.speed_command_rpm(obs)``, the v1 redefinition), else the task's documented
+    (``env.observation_layout.has("speed_command")``: ``speed_command_rpm(obs)``, the v1 tasks), else the
+    task's documented
     nominal target (``ControlSpec.target_rpm``).  It reads nothing else: no whirl feedback, no
     identification -- what a user who knows only the paper's map of the nominal bearing would do.
     """
@@ -156,7 +164,10 @@ class NaiveRampAgent(ScriptedPolicy):
             raise ValueError(f"margin must lie in [0, 0.5), got {margin!r}")
         self.damping = float(damping)
         self.cap_rpm = float(nmap.rpm((1.0 - margin) * nmap.critical_at(self.damping)))
-        self._command = getattr(spec.observations, "speed_command_rpm", None)
+        # the command is an observation entry of the v1 tasks only (ObservationLayout.has / the decoder)
+        lay = spec.observations
+        has = getattr(lay, "has", None)
+        self._command = lay.speed_command_rpm if has is not None and has(SPEED_COMMAND) else None
 
     def setpoint_rpm(self, obs: np.ndarray) -> float:
         cmd = float(self._command(obs)) if self._command is not None else self.spec.target_rpm
@@ -213,13 +224,34 @@ _V0_RULES = (
 )
 
 
-def register(entry: AgentEntry, replace: bool = False) -> AgentEntry:
-    """Add ``entry`` to the ladder (ValueError if the name is taken, unless ``replace``)."""
+def register(entry: AgentEntry, replace: bool = False, supersede: bool = False) -> AgentEntry:
+    """Add ``entry`` to the ladder (ValueError if the name is taken, unless ``replace``).
+
+    ``supersede=True`` (for a naive or oracle entry): every other entry of the same kind gives up
+    ``entry.tasks`` (and is removed if no task is left), so each task keeps exactly one naive and one
+    oracle -- e.g. the v1 oracle takes the v1 tasks from the built-in ``oracle``, which keeps the v0
+    ones."""
     _ensure_defaults()
     if entry.name in LADDER and not replace:
         raise ValueError(f"agent {entry.name!r} is already registered (pass replace=True)")
+    if supersede:
+        for other in [e for e in LADDER.values() if e.kind == entry.kind and e.name != entry.name]:
+            set_tasks(other.name, [t for t in other.tasks if t not in entry.tasks])
     LADDER[entry.name] = entry
     return entry
+
+
+def set_tasks(name: str, tasks: Iterable[str]) -> None:
+    """Restrict (or extend) the tasks of the registered entry ``name``; no task left removes it (e.g.
+    ``set_tasks("paper_ramp_D0.3", V0_TASKS)`` keeps a v0 rule off the v1 tasks)."""
+    _ensure_defaults()
+    if name not in LADDER:
+        raise KeyError(f"no registered agent {name!r}")
+    tasks = tuple(tasks)
+    if tasks:
+        LADDER[name] = dataclasses.replace(LADDER[name], tasks=tasks)
+    else:
+        del LADDER[name]
 
 
 def unregister(name: str) -> None:

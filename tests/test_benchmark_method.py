@@ -166,6 +166,58 @@ def test_register_refuses_duplicates_and_bad_entries_and_scoped_undoes():
         ladder.AgentEntry("a|b", "rule", ("t",), ladder.make_naive)
 
 
+def test_a_v1_reference_supersedes_the_builtin_on_its_tasks_only():
+    from gfb_agents import ladder
+
+    with ladder.scoped():
+        ladder.register(
+            ladder.AgentEntry("oracle_v1", "oracle", ladder.V1_TASKS, ladder.make_schedule_oracle),
+            supersede=True,
+        )
+        for t in ladder.V1_TASKS:
+            assert ladder.oracle_for(t).name == "oracle_v1"
+        for t in ladder.V0_TASKS:
+            assert ladder.oracle_for(t).name == "oracle"
+        ladder.set_tasks("paper_ramp_D10", ladder.V0_TASKS)
+        assert "paper_ramp_D10" not in [e.name for e in ladder.ladder_for(ladder.V1_TASKS[0])]
+        ladder.set_tasks("paper_ramp_D10", [])
+        assert "paper_ramp_D10" not in ladder.registered()
+    assert ladder.oracle_for(ladder.V1_TASKS[0]).name == "oracle"
+
+
+def test_naive_ramp_reads_the_speed_command_where_the_task_has_one():
+    import gymnasium as gym
+
+    from gfb_agents import ladder
+    from gfb_agents.nominal_map import NominalMap
+    from gfb_agents.scripted import ControlSpec
+
+    env = gym.make("gfb_env/RunUp-v0")
+    nmap = NominalMap.from_env(env)
+    spec = ControlSpec.from_env(env, nmap)
+
+    class CommandedLayout:  # the v1 layout's interface: has() and the command decoder
+        def __init__(self, inner, cmd_rpm):
+            self.inner, self.cmd_rpm = inner, cmd_rpm
+
+        def has(self, name):
+            return name == "speed_command"
+
+        def speed_command_rpm(self, obs):
+            return self.cmd_rpm
+
+        def __getattr__(self, k):
+            return getattr(self.inner, k)
+
+    for cmd, expect in ((30_000.0, 30_000.0), (60_000.0, None)):
+        agent = ladder.NaiveRampAgent(
+            dataclasses.replace(spec, observations=CommandedLayout(spec.observations, cmd)), nmap
+        )
+        cap = nmap.rpm(0.95 * nmap.critical_at(1.0))
+        assert agent.setpoint_rpm(np.zeros(16)) == pytest.approx(expect if expect is not None else cap)
+    env.close()
+
+
 def test_naive_ramp_holds_below_lambda_c_of_damping_one():
     import gymnasium as gym
 

@@ -342,6 +342,7 @@ def reduce_results(
             }
             rows.append(row)
             agents_out[name] = {
+                "training": _training_records(entry),
                 "kind": entry.kind,
                 "seeds": [e.seed for e in runs[0]],
                 "returns": ret.tolist(),
@@ -361,6 +362,21 @@ def reduce_results(
     order = {k: i for i, k in enumerate(ladder_mod.KINDS)}
     rows.sort(key=lambda r: (list(per_task).index(r["task"]), order[r["kind"]], r["agent"]))
     return rows, per_task, paths
+
+
+def _training_records(entry: AgentEntry) -> list[dict]:
+    """Per training seed of a learned entry: steps, wall time, throughput and the best validation, from
+    its ``run.json`` / ``policy.json`` (empty for the other kinds)."""
+    out = []
+    for p in entry.run_paths if entry.kind == "learned" else ():
+        meta = {}
+        for f in ("run.json", "policy.json"):
+            if (Path(p) / f).exists():
+                meta = json.loads((Path(p) / f).read_text())
+                break
+        keep = ("seed", "timesteps", "wall_time_s", "env_steps_per_s", "best_validation", "algo", "command")
+        out.append({"path": str(p), **{k: meta.get(k) for k in keep}})
+    return out
 
 
 # ---------------------------------------------------------------------------------------- output

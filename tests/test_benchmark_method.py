@@ -310,6 +310,8 @@ def test_table_rows_from_constructed_episodes():
     assert by["half"]["wall_s"] == 2.0 and by["half"]["episodes"] == 8
     assert per_task[task]["floored_seeds"] == 0
     np.testing.assert_allclose(per_task[task]["agents"]["learn"]["normalized"], [[0.2] * 8, [0.6] * 8])
+    assert [r["path"] for r in per_task[task]["agents"]["learn"]["training"]] == ["a", "b"]
+    assert per_task[task]["agents"]["half"]["training"] == []
 
 
 def test_chunks_on_a_dask_cluster_equal_the_local_run_and_are_cached(tmp_path):

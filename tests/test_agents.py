@@ -299,6 +299,20 @@ def test_train_cli_trains_several_seeds_and_the_ladder_registers_them(tmp_path):
     exported = LearnedPolicy(dest / "seed1")
     assert json.loads((dest / "seed1" / "policy.json").read_text())["model"] == "best"
     np.testing.assert_array_equal(exported.predict(obs)[0], pol.predict(obs)[0])
+    # the benchmark plays both training seeds of the --learned folder on the same seeds as the ladder
+    from gfb_experiments.benchmark_agents import main as bench_main
+
+    bench = ["--quick", "--no-learned", "--tasks", env_id, "--agents", "exp", "--reps", "200"]
+    bench += ["--learned", str(tmp_path / "exp"), "--out", str(tmp_path / "bench")]
+    bench += ["--env-kwargs", json.dumps({env_id: {"max_episode_steps": 6}})]
+    assert bench_main(bench) == 0
+    rows = {r["agent"]: r for r in csv.DictReader((tmp_path / "bench" / "benchmark_agents.csv").open())}
+    assert set(rows) == {"naive", "oracle", "exp"}
+    assert rows["exp"]["kind"] == "learned" and rows["exp"]["training_seeds"] == "2"
+    meta = json.loads((tmp_path / "bench" / "benchmark_agents.json").read_text())
+    learned = meta["tasks"][env_id]["agents"]["exp"]
+    assert len(learned["returns"]) == 2 and learned["seeds"] == seeds.split_seeds("test", 2)
+    assert [t["seed"] for t in learned["training"]] == [0, 1]
 
 
 def _exit_2_one_line(main, argv, fragment, capsys):

@@ -12,7 +12,9 @@ split                     seeds                   used by
 ``TEST``                  3 000 000 - 3 999 999   the final table only (``--split test``, the default)
 ``LEGACY_V0``             10 000 - 10 049         the v0 table of 2026-11 (seen during development; kept only
                                                   to reproduce that table, never a test set)
-``DEV``                   0 - 9 999               unit tests, examples, exploration
+``DEV``                   0 - 9 999               unit tests, examples, exploration, early tuning (the
+                                                  v1 oracle margins and rules of issue 11 were tuned on
+                                                  seeds here: disjoint from TEST all the same)
 ========================  ======================  ============================================================
 
 A seed here is the argument of ``env.reset(seed=...)``.  A training env is seeded once per session and

@@ -95,7 +95,7 @@ def test_bootstrap_ci_covers_the_truth_and_is_reproducible():
     truth, hits, widths = 0.4, 0, []
     for _ in range(40):
         x = truth + 0.3 * rng.standard_normal((1, 100))
-        est = interval_estimates(x, reps=1000)
+        est = interval_estimates(x, reps=500)
         hits += est["iqm_low"] <= truth <= est["iqm_high"]
         widths.append(est["iqm_high"] - est["iqm_low"])
     assert hits >= 34  # P(X >= 34 | Bin(40, 0.95)) > 0.99
@@ -116,6 +116,20 @@ def test_bootstrap_over_training_seeds_includes_their_spread():
     assert est["mean_high"] - est["mean_low"] > 0.2  # seed spread (~0.28 / sqrt 5 x 2 x 1.96 ~ 0.5)
     one = interval_estimates(x[2], reps=2000)
     assert one["mean_high"] - one["mean_low"] < 0.05
+
+
+def test_profile_equals_rliables_score_distribution(tmp_path):
+    from rliable import library as rly
+
+    from gfb_experiments.benchmark_stats import _score_distribution, performance_profile_png
+
+    x = np.random.default_rng(1).normal(size=(3, 40))
+    x[0, :5] = 0.25  # ties at a threshold
+    taus = np.linspace(-2, 2, 17)
+    np.testing.assert_allclose(_score_distribution(x, taus), rly.score_distributions(x, taus), atol=1e-12)
+    p = performance_profile_png({"a": x, "b": x + 0.5, "nan": np.full((1, 4), np.nan)}, tmp_path / "p.png")
+    assert p is not None and p.stat().st_size > 5_000
+    assert performance_profile_png({"nan": np.full((1, 4), np.nan)}, tmp_path / "q.png") is None
 
 
 def test_statistics_refuse_bad_input_and_pass_nan_through():

@@ -44,8 +44,8 @@ __all__ = [
 GAP_FLOOR_FRACTION = 0.1
 #: a median oracle-naive margin below this fraction of the returns' size counts as none (rounding)
 NO_HEADROOM_REL = 1e-9
-#: bootstrap replications (rliable's default is 50 000; 10 000 keeps the 2.5 % quantile to ~0.1 % of its
-#: spread and a table of ~50 rows to seconds)
+#: bootstrap replications (rliable's default is 50 000; measured here: 2 s per call for 1 x 100 scores,
+#: 4.5 s for 5 x 100, so a table of ~50 rows (two calls each) takes a few minutes)
 DEFAULT_REPS = 10_000
 
 

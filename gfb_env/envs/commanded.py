@@ -268,6 +268,20 @@ class CommandedSpeedMixin:
         mean_p = float(np.mean(ce.progresses)) if (cert is not None and cert.certified) else None
         return self.commanded.reward.terms(out, ce.stable, ce.progresses[-1], mean_p)
 
+    # ---- the episode's command and hidden plant (public, per episode) ---------------------------
+    @property
+    def speed_command(self) -> SpeedCommand:
+        """The episode's speed command (observed: ``n_cmd``; here also ``Lambda_cmd``, ``Lambda_ref``)."""
+        ce = self.episode.command
+        if ce is None:
+            raise AttributeError("speed_command: only the v1 (commanded-speed) tasks have one")
+        return ce.command
+
+    @property
+    def damping_gain(self) -> float:
+        """The episode's hidden damping effectiveness ``g`` (actual D_W = g x commanded; for oracles)."""
+        return float(self.episode.actuator.gain)
+
     # ---- the episode's hidden optimum -------------------------------------------------------------
     def best_stable_operating_point(self) -> BestStablePoint:
         """The exact best stable operating point of this episode's plant for the achievable actual

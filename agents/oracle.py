@@ -39,9 +39,9 @@ __all__ = ["CommandedOracle", "CommandedRamp", "ORACLE_MARGIN", "ORACLE_COLLAPSE
 
 #: the oracle's relative margin below lambda_best (tuned on training seeds 0-99, ``docs/envs.md``)
 ORACLE_MARGIN = {
-    "gfb_env/RunUp-v1": 0.005,
-    "gfb_env/RunUpRandomized-v1": 0.005,
-    "gfb_env/WhirlRecovery-v1": 0.005,
+    "gfb_env/RunUp-v1": 0.01,
+    "gfb_env/RunUpRandomized-v1": 0.01,
+    "gfb_env/WhirlRecovery-v1": 0.01,
 }
 #: WhirlRecovery-v1: the true whirl amplitude (units of C) below which the oracle stops decelerating
 ORACLE_COLLAPSE_AMPLITUDE = 0.05
@@ -114,7 +114,7 @@ class CommandedOracle(_OneEnvPolicy):
     ):
         super().__init__(env, name)
         spec_id = getattr(getattr(env, "spec", None), "id", None)
-        self.margin = float(ORACLE_MARGIN.get(spec_id, 0.005) if margin is None else margin)
+        self.margin = float(ORACLE_MARGIN.get(spec_id, 0.01) if margin is None else margin)
         if not 0.0 <= self.margin < 0.5:
             raise ValueError(f"margin must lie in [0, 0.5), got {margin!r}")
         self.collapse_amplitude = float(collapse_amplitude)

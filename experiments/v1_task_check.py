@@ -59,6 +59,78 @@ def play(env: gym.Env, agent, seed: int) -> dict:
     }
 
 
+def command_statistics(n: int) -> dict:
+    """RunUpRandomized-v1 on ``n`` draws (seeds 0..n-1): the exact best stable speed of each drawn plant
+    (achievable actual damping), the share of commands above it, and the error of the v0 table's
+    trilinear ``lambda_best`` (unconstrained damping) against the exact unconstrained value."""
+    env = gym.make("gfb_env/RunUpRandomized-v1")
+    u = env.unwrapped
+    above, best_rpm, table_err, t_best, cmd_rpm = [], [], [], [], []
+    for seed in range(n):
+        _, info = env.reset(seed=seed)
+        t0 = time.perf_counter()
+        bp = u.best_stable_operating_point()
+        t_best.append(time.perf_counter() - t0)
+        lam_u, _ = u._unconstrained_best_point()
+        task = u.episode.task
+        tab = u.table(task.clearance_m, task.stiffness_factor, task.load_n)["lambda_best"]
+        table_err.append(tab / lam_u - 1.0)
+        best_rpm.append(bp.speed_rpm)
+        above.append(info["speed_command_rpm"] > bp.speed_rpm)
+        cmd_rpm.append(float(info["speed_command_rpm"]))
+    b = np.array(best_rpm)
+    e = np.array(table_err)
+    return {
+        "draws": n,
+        "share_of_commands_above_best": float(np.mean(above)),
+        "best_speed_rpm_min_median_max": [float(b.min()), float(np.median(b)), float(b.max())],
+        "table_error_mean_min_max": [float(e.mean()), float(e.min()), float(e.max())],
+        "best_point_seconds_mean_max": [float(np.mean(t_best)), float(np.max(t_best))],
+        "best_speed_rpm": [float(x) for x in b],
+        "command_rpm": cmd_rpm,
+    }
+
+
+def step_cost(episodes: int = 5, steps: int = 200) -> dict:
+    """Wall time per control step of RunUp with the v1 objective against the same machine with the v0
+    objective (``task_version=0``) and against RunUp-v0, on one fixed stable ramp (the same actions);
+    the v1 horizon's certification is timed apart (median of ``episodes``, one env each)."""
+    from gfb_env.envs import V1_TASK
+
+    machine = {k: v for k, v in V1_TASK.items() if k != "task_version"}
+    variants = {
+        "RunUp-v1": ("gfb_env/RunUp-v1", {"episode_steps": steps}),
+        "RunUp machine-v1, objective v0": ("gfb_env/RunUp-v0", {**machine, "target_tolerance": 1e-9}),
+        "RunUp-v0": ("gfb_env/RunUp-v0", {"target_tolerance": 1e-9}),
+    }
+    out: dict = {}
+    for name, (env_id, kw) in variants.items():
+        env = gym.make(env_id, max_episode_steps=steps, **kw)
+        u = env.unwrapped
+        per_step, cert = [], []
+        for ep in range(episodes):
+            env.reset(seed=100 + ep)
+            t = 0.0
+            for k in range(steps):
+                lam = u._integ.bearing_number
+                a0 = float(np.clip((0.62 - lam) / (u.max_rate() * u.control_interval), -1, 1))
+                a = np.array([a0, u.action_from_damping(2.0)], dtype=np.float32)
+                t0 = time.perf_counter()
+                _, _, term, trunc, info = env.step(a)
+                dt = time.perf_counter() - t0
+                if k == steps - 1 and name == "RunUp-v1":
+                    cert.append(dt)
+                else:
+                    t += dt
+                if term or trunc:
+                    break
+            per_step.append(t / (k + (0 if name == "RunUp-v1" else 1)))
+        out[name] = {"ms_per_step_median": 1e3 * float(np.median(per_step))}
+        if cert:
+            out[name]["ms_last_step_with_certificate_median"] = 1e3 * float(np.median(cert))
+    return out
+
+
 def summarise(rows: list[dict]) -> dict:
     r = np.array([x["return"] for x in rows])
     n = len(r)
@@ -91,7 +163,24 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--tasks", default=",".join(V1_IDS))
     p.add_argument("--margins", default="", help="tune the oracle's margin: comma-separated values")
     p.add_argument("--out", default="results/v1_task_check/summary.json")
+    p.add_argument(
+        "--command-draws", type=int, default=0, help="only the RunUpRandomized-v1 command statistics"
+    )
+    p.add_argument("--step-cost", action="store_true", help="only the wall time per step, v1 against v0")
     a = p.parse_args(argv)
+    if a.step_cost:
+        stats = step_cost()
+        print(stats)
+        Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(a.out).write_text(json.dumps(stats, indent=1))
+        return
+    if a.command_draws:
+        stats = command_statistics(a.command_draws)
+        print(stats)
+        path = Path(a.out)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(stats, indent=1))
+        return
     seeds = parse_seeds(a.seeds)
     if min(seeds) < 0 or max(seeds) > 99:
         p.error("--seeds: only training seeds 0-99")

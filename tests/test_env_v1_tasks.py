@@ -277,7 +277,15 @@ def test_same_seed_same_trajectory(env_id):
     assert np.array_equal(run(), run())
 
 
-@pytest.mark.parametrize("env_id", V1_IDS)
+@pytest.mark.parametrize(
+    "env_id",
+    [
+        "gfb_env/RunUp-v1",
+        # each certified end below the command computes the drawn plant's exact optimum (~1 s)
+        pytest.param("gfb_env/RunUpRandomized-v1", marks=pytest.mark.slow),
+        "gfb_env/WhirlRecovery-v1",
+    ],
+)
 def test_vector_env_is_sync_bit_for_bit_across_the_horizon(env_id):
     kw = {**FAST, "episode_steps": 3, "hold_steps": 2}
     native = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **kw)

@@ -86,7 +86,8 @@ class CostSpec:
     Why these levels: 0.15 C is three times the stable threshold (a whirl that is clearly developing,
     ~7.5 um on the nominal bearing); 0.1 C (5 um) is five times the touchdown film (0.02 C): the rotor
     runs with half its margin to the foil's rubbing gone.  The loaded static equilibrium of the tasks has
-    a film of ~0.3-0.5 C, so stable operation costs nothing; a WhirlRecovery episode starts on a whirl
+    a film of 0.23-0.61 C (the drawn bearings' corners, from the start speed to Lambda = 0.7), so stable
+    operation costs nothing; a WhirlRecovery episode starts on a whirl
     and pays while it lasts.  The limit 5 allows a few transient steps (e.g. the first steps of a
     recovery), not a sustained whirl.
     """

@@ -359,3 +359,19 @@ def test_the_oracle_recovers_from_the_whirl():
     assert info["bearing_number"] == pytest.approx(
         0.99 * env.unwrapped.best_stable_operating_point().bearing_number, rel=1e-6
     )
+
+
+def test_a_failing_best_point_search_never_crashes_the_horizon(monkeypatch):
+    """The horizon's lazy optimum is only needed when the command was not reached; if its search fails
+    the step still completes (success then needs the command itself)."""
+    env = gym.make("gfb_env/RunUp-v1", episode_steps=12, hold_steps=2, **FAST, **NO_SHOCKS)
+    u = env.unwrapped
+
+    def boom(self):
+        raise RuntimeError("no stability boundary")
+
+    monkeypatch.setattr(type(u), "_unconstrained_best_point", boom)
+    env.reset(seed=0)
+    for _ in range(12):  # hold the start speed: certified, far below the command
+        _, r, term, _, info = env.step(np.array([0.0, 0.0], dtype=np.float32))
+    assert term and info["certified"] and not info["is_success"] and math.isfinite(r)

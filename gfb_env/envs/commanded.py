@@ -29,6 +29,7 @@ from gfb_env.envs.certify import (
     BestStablePoint,
     Certificate,
     StabilityCertificate,
+    below_best_stable_speed,
     best_stable_operating_point,
 )
 from gfb_env.envs.config import check_in, check_int, check_nonnegative, check_positive
@@ -254,19 +255,31 @@ class CommandedSpeedMixin:
         return ce.success
 
     def _speed_reached(self, ce: CommandedEpisode) -> bool:
-        """Window-mean Lambda >= (1 - tol) min(Lambda_cmd, lambda_best); lambda_best computed only when
-        the command itself was not reached (it costs ~0.3 s for a drawn bearing)."""
+        """Window-mean Lambda >= (1 - tol) min(Lambda_cmd, lambda_best), exactly.  Only when the command
+        itself was not reached does lambda_best matter: then ``mean >= (1 - tol) lambda_best`` iff
+        ``Lambda* = mean / (1 - tol)`` is NOT below the best stable speed, i.e. iff no achievable actual
+        damping makes the equilibrium at Lambda* stable: one :func:`below_best_stable_speed` (~0.1 s),
+        or the episode's best point where it is already known (cached, or a fixed plant's)."""
         need = 1.0 - self.commanded.target_tolerance
         mean = float(np.mean(ce.bearing_numbers))
         if mean >= need * ce.command.bearing_number:
             return True
         try:
-            best = self.best_stable_operating_point().bearing_number
+            if ce.best is not None or self._best_point_is_cached():
+                best = self.best_stable_operating_point().bearing_number
+                return mean >= need * min(ce.command.bearing_number, best)
+            g, (dmin, dmax) = self.episode.actuator.gain, self.damping_range
+            return not below_best_stable_speed(
+                self.episode.model, mean / need, (g * dmin, g * dmax), self._integ.state
+            )
         except _BEST_POINT_FAILURES:
-            # never crash a step: without the exact optimum only the command counts (not seen on the
-            # tasks' parameter boxes; a test forces it)
+            # never crash a step: without the optimum only the command counts (not seen on the tasks'
+            # parameter boxes; a test forces it)
             return False
-        return mean >= need * min(ce.command.bearing_number, best)
+
+    def _best_point_is_cached(self) -> bool:
+        """Whether the episode's plant has its optimum cached (fixed plants: after the first time)."""
+        return False
 
     def _horizon_reached(self) -> bool:
         if self.commanded is None:

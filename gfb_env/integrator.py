@@ -179,6 +179,28 @@ class _Forcing(NamedTuple):
 
 
 _NO_SHOCKS = np.zeros((0, 4))
+_NO_INDICES = np.zeros(0, dtype=np.int64)
+# the extremes' start (min H, xi min/max, eta min/max, max eccentricity, touchdown time, xi, eta)
+_EXTREMES_START = np.array([np.inf, np.inf, -np.inf, np.inf, -np.inf, 0.0, np.nan, np.nan, np.nan])
+
+
+class _Call(NamedTuple):
+    """One prepared call of the compiled loop (:meth:`TrapezoidalIntegrator._prepare`): its arguments
+    and what :meth:`TrapezoidalIntegrator._finish` needs besides the loop's outputs."""
+
+    st: StepperState  # the state the call starts from (its arrays are advanced in place)
+    schedule: tuple  # (tau_end, Lambda_0, Lambda_1, D_W0, D_W1)
+    span: float
+    rate: float  # theta'' of the call's ramp
+    options: _Options
+    recording: _Recording
+    rec_buf: np.ndarray  # the whole sample buffer (a sample at the start in row 0 when first == 1)
+    first: int
+    stats: np.ndarray
+    ext: np.ndarray
+    forcing: _Forcing | None
+    max_steps: Any  # as passed (it appears in the max_steps message)
+
 
 #: Default of ``steps_per_revolution``: with an unbalance the step is at most 1/32 of a revolution.  The
 #: error control alone (absolute tolerance 3e-4) lets small forced orbits through with errors of 6-16 %
@@ -635,6 +657,22 @@ class IntegratorStatistics:
     def __add__(self, other: IntegratorStatistics) -> IntegratorStatistics:
         return IntegratorStatistics.from_array(self.as_array() + other.as_array())
 
+    def plus(self, counts: list[int]) -> IntegratorStatistics:
+        """These counters plus the compiled loop's ``counts`` (a list in the field order; plain ints:
+        the arrays of ``+`` cost ~8 us per control step)."""
+        s = self
+        return IntegratorStatistics(
+            s.steps + counts[0],
+            s.rejected_steps + counts[1],
+            s.newton_failures + counts[2],
+            s.jacobians + counts[3],
+            s.factorizations + counts[4],
+            s.rhs_evaluations + counts[5],
+            s.recorded_samples + counts[6],
+            s.inadmissible_iterates + counts[7],
+            s.diverged_iterations + counts[8],
+        )
+
 
 _STATISTICS_FIELDS = tuple(f.name for f in dataclasses.fields(IntegratorStatistics))
 
@@ -742,6 +780,28 @@ class StepperState:
             previous_step2=float(previous_step2),
             history=int(history),
         )
+
+    def advanced(
+        self,
+        clock: tuple[float, float, float, float, int],
+        *,
+        bearing_number: float,
+        foil_damping: float,
+        counts: list[int],
+        last_record_tau: float,
+        rotation_angle: float,
+        rotation_acceleration: float,
+        shocks: tuple[HalfSineShock, ...],
+    ) -> StepperState:
+        """The state after a compiled call: the same (advanced in place) arrays, the loop's ``clock``
+        and the rest as given (one constructor call: two ``dataclasses.replace`` cost ~10 us)."""
+        tau, step, previous_step, previous_step2, history = clock
+        return StepperState(
+            self.s, self.f, self.fprev, self.sprev, self.sprev2, float(tau), float(step),
+            float(previous_step), float(previous_step2), int(history), bearing_number, foil_damping,
+            self.statistics.plus(counts), last_record_tau, rotation_angle, rotation_acceleration,
+            self.unbalance, shocks,
+        )  # fmt: skip
 
     def as_dict(self) -> dict[str, Any]:
         """The fields as a dict (arrays copied), plus ``lam``/``dw``: aliases of the operating point for
@@ -909,6 +969,8 @@ class TrapezoidalIntegrator:
         self.factorization_ratio = o.factorization_ratio
         self.slow_newton_iterations = o.slow_newton_iterations
         self._kernel_args = model.kernel_args()
+        self._record_key: tuple | None = None  # the last record_indices (see _record_indices)
+        self._record_idx = _NO_INDICES
         self._jacobian = _Jacobian(**model.new_blocks())
         nc, m = model.grid.n_columns, model.layout.block_size
         nb = m + 4
@@ -1103,7 +1165,45 @@ class TrapezoidalIntegrator:
         below ``min_step`` or ``max_steps`` is exceeded, raises :class:`IntegrationError` (or returns
         ``status == "failed"`` / ``"max_steps"`` when ``raise_on_failure`` is False); the state is
         then the last accepted one, never NaN.
+
+        Three parts: :meth:`_prepare` (Python: checks and the compiled call's arguments), the compiled
+        loop :func:`_advance`, :meth:`_finish` (Python: the new :class:`StepperState` and the result).
+        :func:`advance_batch` runs the same parts for many integrators with one compiled call.
         """
+        call = self._prepare(
+            tau_end, bearing_number, foil_damping, record_interval, record_indices, max_steps
+        )
+        code, clock = _advance(
+            call.st.arrays, call.st.clock, call.schedule, self._kernel_args, self._jacobian,
+            self._factorization, call.options, call.recording, call.stats, call.ext, call.forcing,
+        )  # fmt: skip
+        return self._finish(call, code, clock, raise_on_failure)
+
+    def _record_indices(self, record_indices: np.ndarray | None) -> np.ndarray:
+        """The recorded state entries: the rotor, then ``record_indices`` (checked; the last one is
+        kept, so an env that records the same probes every control step builds them once)."""
+        extra = _NO_INDICES if record_indices is None else np.asarray(record_indices, np.int64)
+        key = (extra.shape, extra.tobytes())
+        if key == self._record_key:
+            return self._record_idx
+        if extra.size and (extra.min() < 0 or extra.max() >= self.model.layout.size):
+            raise ValueError("record_indices out of range")
+        L = self.model.layout
+        rec_idx = np.concatenate([np.arange(L.rotor_offset, L.size, dtype=np.int64), extra])
+        self._record_key, self._record_idx = key, rec_idx
+        return rec_idx
+
+    def _prepare(
+        self,
+        tau_end: float,
+        bearing_number: float | None,
+        foil_damping: float | None,
+        record_interval: float | None,
+        record_indices: np.ndarray | None,
+        max_steps: int,
+    ) -> _Call:
+        """Check one call's arguments and build the compiled loop's (nothing is integrated yet; the
+        unbalance's k at the start may move to this call's theta'', see :meth:`_forcing_of_call`)."""
         st = self._stepper
         lam0, dw0 = st.bearing_number, st.foil_damping
         lam1 = lam0 if bearing_number is None else float(bearing_number)
@@ -1111,17 +1211,10 @@ class TrapezoidalIntegrator:
         self.model.check_operating_point(lam1, dw1)
         if not math.isfinite(tau_end):
             raise ValueError(f"tau_end must be finite, got {tau_end!r}")
-        t0 = self.tau
+        t0 = st.tau
         if tau_end < t0:
             raise ValueError(f"tau_end must not be before the current time {t0}, got {tau_end}")
-        L = self.model.layout
-        rot = np.arange(L.rotor_offset, L.size, dtype=np.int64)
-        extra = (
-            np.zeros(0, dtype=np.int64) if record_indices is None else np.asarray(record_indices, np.int64)
-        )
-        if extra.size and (extra.min() < 0 or extra.max() >= L.size):
-            raise ValueError("record_indices out of range")
-        rec_idx = np.concatenate([rot, extra])
+        rec_idx = self._record_indices(record_indices)
         if record_interval is None:
             rec_dt = math.inf
             rec_next = math.inf
@@ -1137,8 +1230,6 @@ class TrapezoidalIntegrator:
             rec_next = k0 * rec_dt
             cap = max(int(math.floor((tau_end - rec_next) / rec_dt + 1e-9)) + 2, 0)
         rec_buf = np.empty((cap, len(rec_idx) + 2))
-        stats = np.zeros(9, dtype=np.int64)
-        ext = np.array([np.inf, np.inf, -np.inf, np.inf, -np.inf, 0.0, np.nan, np.nan, np.nan])
         first = 0
         if cap and rec_next <= t0 + 1e-9 * rec_dt:  # a sample exactly at the start
             rec_buf[0, 0] = t0
@@ -1151,50 +1242,68 @@ class TrapezoidalIntegrator:
             int(max_steps), self.max_newton_iterations, self.newton_tol, self.factorization_ratio,
             self.slow_newton_iterations,
         )  # fmt: skip
-        recording = _Recording(rec_idx, rec_dt, float(rec_next), rec_buf[first:])
         span = float(tau_end) - t0
         forcing, rate = self._forcing_of_call(st, span, lam0, lam1)
-        code, clock = _advance(
-            st.arrays, st.clock, (float(tau_end), lam0, lam1, dw0, dw1), self._kernel_args,
-            self._jacobian, self._factorization, options, recording, stats, ext, forcing,
-        )  # fmt: skip
+        return _Call(
+            st=st,
+            schedule=(float(tau_end), lam0, lam1, dw0, dw1),
+            span=span,
+            rate=rate,
+            options=options,
+            recording=_Recording(rec_idx, rec_dt, float(rec_next), rec_buf[first:]),
+            rec_buf=rec_buf,
+            first=first,
+            stats=np.zeros(9, dtype=np.int64),
+            ext=_EXTREMES_START.copy(),
+            forcing=forcing,
+            max_steps=max_steps,
+        )
+
+    def _finish(
+        self, call: _Call, code: int, clock: tuple[float, float, float, float, int], raise_on_failure: bool
+    ) -> AdvanceResult:
+        """The integrator's new state and the call's result from the compiled loop's outputs."""
+        st = call.st
+        t0, lam0, lam1, dw0, dw1 = st.tau, *call.schedule[1:]
+        span = call.span
         t = float(clock[0])
         theta = (t - t0) / span if span > 0 else 1.0
         lam_t = lam0 + (lam1 - lam0) * theta
         dw_t = dw0 + (dw1 - dw0) * theta
-        nrec = first + int(stats[_NREC])
-        rb = rec_buf[:nrec]
+        counts = call.stats.tolist()
+        nrec = call.first + counts[_NREC]
+        rb = call.rec_buf[:nrec]
         # theta' = Lambda is linear in time over the call: theta advances by the exact trapezoid
         angle = st.rotation_angle + (t - t0) * 0.5 * (lam0 + lam_t)
-        self._stepper = dataclasses.replace(
-            st.with_clock(clock),
+        self._stepper = new = st.advanced(
+            clock,
             bearing_number=lam_t,
             foil_damping=dw_t,
-            statistics=st.statistics + IntegratorStatistics.from_array(stats),
+            counts=counts,
             last_record_tau=float(rb[-1, 0]) if nrec else st.last_record_tau,
             rotation_angle=math.fmod(angle, 2.0 * math.pi) if span > 0 else st.rotation_angle,
-            rotation_acceleration=rate,
-            shocks=tuple(q for q in st.shocks if q.end_tau > t),
+            rotation_acceleration=call.rate,
+            shocks=tuple(q for q in st.shocks if q.end_tau > t) if st.shocks else (),
         )
-        tau_s = rb[:, 0]
+        # one copy of the samples, column by column (each column contiguous, as before)
+        cols = rb.T.copy()
+        tau_s = cols[0]
         th = (tau_s - t0) / span if span > 0 else np.ones_like(tau_s)
         traj = Trajectory(
-            tau=tau_s.copy(),
-            xi=rb[:, 1].copy(),
-            eta=rb[:, 2].copy(),
-            xi_dot=rb[:, 3].copy(),
-            eta_dot=rb[:, 4].copy(),
-            min_film_thickness=rb[:, -1].copy(),
+            tau=tau_s,
+            xi=cols[1],
+            eta=cols[2],
+            xi_dot=cols[3],
+            eta_dot=cols[4],
+            min_film_thickness=cols[-1],
             probes=rb[:, 5:-1].copy(),
             bearing_number=lam0 + (lam1 - lam0) * th,
             foil_damping=dw0 + (dw1 - dw0) * th,
         )
-        status = _STATUS_OF_CODE[code]
+        ext = call.ext.tolist()
         event = None
         if code == _TOUCHDOWN:
-            event = TouchdownEvent(
-                float(ext[_EVT]), float(ext[_EVXI]), float(ext[_EVETA]), self.touchdown_film_thickness
-            )
+            event = TouchdownEvent(ext[_EVT], ext[_EVXI], ext[_EVETA], self.touchdown_film_thickness)
         msg = ""
         if code == _FAILED:
             msg = (
@@ -1202,24 +1311,25 @@ class TrapezoidalIntegrator:
                 f"(Lambda={lam_t:.4g}, D_W={dw_t:.4g}); the state is the last accepted one"
             )
         elif code == _MAX_STEPS:
-            msg = f"max_steps={max_steps} reached at tau={t:.6g}"
-        if not math.isfinite(ext[_MINH]):
-            ext[_MINH] = self.model.min_film_thickness(self._stepper.s)
+            msg = f"max_steps={call.max_steps} reached at tau={t:.6g}"
+        min_h = ext[_MINH]
+        if not math.isfinite(min_h):
+            min_h = self.model.min_film_thickness(new.s)
         res = AdvanceResult(
-            status=status,
+            status=_STATUS_OF_CODE[code],
             tau=t,
             trajectory=traj,
             touchdown=event,
-            steps=int(stats[_NSTEPS]),
-            rejected_steps=int(stats[_NREJ_ERR]),
-            newton_failures=int(stats[_NREJ_NEWTON]),
-            jacobians=int(stats[_NJAC]),
-            factorizations=int(stats[_NFACT]),
-            rhs_evaluations=int(stats[_NRHS]),
-            min_film_thickness=float(ext[_MINH]),
-            xi_range=(float(ext[_XIMIN]), float(ext[_XIMAX])),
-            eta_range=(float(ext[_ETAMIN]), float(ext[_ETAMAX])),
-            max_eccentricity=float(ext[_EPSMAX]),
+            steps=counts[_NSTEPS],
+            rejected_steps=counts[_NREJ_ERR],
+            newton_failures=counts[_NREJ_NEWTON],
+            jacobians=counts[_NJAC],
+            factorizations=counts[_NFACT],
+            rhs_evaluations=counts[_NRHS],
+            min_film_thickness=float(min_h),
+            xi_range=(ext[_XIMIN], ext[_XIMAX]),
+            eta_range=(ext[_ETAMIN], ext[_ETAMAX]),
+            max_eccentricity=ext[_EPSMAX],
             message=msg,
         )
         if raise_on_failure and code in (_FAILED, _MAX_STEPS):

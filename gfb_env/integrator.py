@@ -56,11 +56,13 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
+import os
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
+import numba
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from gfb_env import _kernels as K
 from gfb_env import forcing as F
@@ -73,6 +75,7 @@ from gfb_env.model import GFBModel
 
 __all__ = [
     "TrapezoidalIntegrator",
+    "BatchAdvance",
     "Trajectory",
     "AdvanceResult",
     "TouchdownEvent",
@@ -179,6 +182,8 @@ class _Forcing(NamedTuple):
 
 
 _NO_SHOCKS = np.zeros((0, 4))
+#: The default ``max_steps`` of one :meth:`TrapezoidalIntegrator.advance`.
+DEFAULT_MAX_STEPS = 10_000_000
 _NO_INDICES = np.zeros(0, dtype=np.int64)
 # the extremes' start (min H, xi min/max, eta min/max, max eccentricity, touchdown time, xi, eta)
 _EXTREMES_START = np.array([np.inf, np.inf, -np.inf, np.inf, -np.inf, 0.0, np.nan, np.nan, np.nan])
@@ -623,6 +628,53 @@ def _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats, ext, forcing):
         h = _step_after_acceptance(h, hstep, err, truncated, opt.max_step)
     stats[_NREC] = rec_n
     return status, (t, h, hp, hp2, history)
+
+
+# ------------------------------------------------------------------------------------------------
+@njit(parallel=True, cache=True)
+def _advance_batch(
+    Y, clocks, history, schedules, IP, FP, SN, CS,  # states, clocks, schedules, kernel args
+    Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Yw, Slu, Spiv, lu_static,  # per-env workspace
+    opt_f, opt_i, rec_idx, rec_t, rec_bufs, rec_rows, stats, ext,  # options, recording, outputs
+    forced, force_f, shocks, n_shocks, codes,  # the forcing per env, the status codes (out)
+):  # fmt: skip
+    """:func:`_advance` of env i = 0..N-1 in a ``prange``: each env's call gets exactly the argument
+    groups (types included) that :meth:`TrapezoidalIntegrator.advance` passes, built from row i of the
+    stacked arrays, so it runs the same compiled loop and its result is bit for bit the single call's.
+
+    Y (N, 5, n): y per env; clocks (N, 4) and history (N,): the clock (updated in place); schedules
+    (N, 5); IP, FP, SN, CS: the stacked kernel args; Ad..Spiv: each env's Jacobian and factorisation
+    workspace (every call evaluates J first, so it carries nothing from call to call); lu_static:
+    (n_rows, sparse, size_tag), the same for the batch; opt_f (N, 7) / opt_i (N, 3): the float / int
+    fields of :class:`_Options`; rec_idx: the recorded entries (the same for the batch); rec_t (N, 2):
+    (interval, first_tau); rec_bufs (N, cap, k) with rec_rows (N, 2): the rows [lo, hi) each env's
+    loop records into; stats, ext (N, 9): counters and extremes; forced (N,): whether env i passes a
+    :class:`_Forcing` (force_f (N, 3): unbalance, angle, max_step; shocks (N, kmax, 4) with n_shocks)
+    or None; codes (N,): the status codes (out).  A failure is a status of its env only."""
+    n_rows, sparse, size_tag = lu_static
+    for i in prange(Y.shape[0]):
+        y = (Y[i, 0], Y[i, 1], Y[i, 2], Y[i, 3], Y[i, 4])
+        clock = (clocks[i, 0], clocks[i, 1], clocks[i, 2], clocks[i, 3], history[i])
+        schedule = (schedules[i, 0], schedules[i, 1], schedules[i, 2], schedules[i, 3], schedules[i, 4])
+        kargs = (IP[i], FP[i], SN[i], CS[i])
+        jac = _Jacobian(Ad[i], Ap[i], Am[i], Er[i], Rr[i], Srr[i])
+        lu = _Factorization(Dlu[i], Dpiv[i], Uhat[i], Yw[i], Slu[i], Spiv[i], n_rows, sparse, size_tag)
+        opt = _Options(
+            opt_f[i, 0], opt_f[i, 1], opt_f[i, 2], opt_f[i, 3], opt_f[i, 4], opt_i[i, 0], opt_i[i, 1],
+            opt_f[i, 5], opt_f[i, 6], opt_i[i, 2],
+        )  # fmt: skip
+        rec = _Recording(rec_idx, rec_t[i, 0], rec_t[i, 1], rec_bufs[i, rec_rows[i, 0] : rec_rows[i, 1]])
+        if forced[i]:
+            forcing = _Forcing(force_f[i, 0], force_f[i, 1], shocks[i, : n_shocks[i]], force_f[i, 2])
+            code, c = _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats[i], ext[i], forcing)
+        else:
+            code, c = _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats[i], ext[i], None)
+        codes[i] = code
+        clocks[i, 0] = c[0]
+        clocks[i, 1] = c[1]
+        clocks[i, 2] = c[2]
+        clocks[i, 3] = c[3]
+        history[i] = c[4]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -1151,7 +1203,7 @@ class TrapezoidalIntegrator:
         foil_damping: float | None = None,
         record_interval: float | None = None,
         record_indices: np.ndarray | None = None,
-        max_steps: int = 10_000_000,
+        max_steps: int = DEFAULT_MAX_STEPS,
         raise_on_failure: bool = True,
     ) -> AdvanceResult:
         """Integrate to ``tau_end`` with Lambda and D_W ramped linearly from their current values to
@@ -1335,3 +1387,236 @@ class TrapezoidalIntegrator:
         if raise_on_failure and code in (_FAILED, _MAX_STEPS):
             raise IntegrationError(msg)
         return res
+
+
+# ------------------------------------------------------------------------------------------------
+def _choose_threading_layer() -> None:
+    """numba's ``workqueue`` threading layer for the batch unless the user chose one
+    (``NUMBA_THREADING_LAYER``) or numba already started one.  Measured on the shared 2-core machine
+    (load ~4): with 2 threads GNU OpenMP's ``omp`` layer made a batch call 5x slower than 1 thread
+    (its workers spin while the cores are busy), ``workqueue`` was as fast as 1 thread; ``workqueue``
+    is also fork-safe (GNU OpenMP is not: a forked worker that launched threads would hang).  It is
+    not thread-safe: do not step two batches from two Python threads at once."""
+    if os.environ.get("NUMBA_THREADING_LAYER") is None and numba.config.THREADING_LAYER == "default":
+        from numba.np.ufunc import parallel
+
+        if not parallel._is_initialized:
+            numba.config.THREADING_LAYER = "workqueue"
+
+
+class _BatchWorkspace:
+    """The stacked arrays of :func:`_advance_batch` for up to ``capacity`` envs of one model shape."""
+
+    def __init__(self, capacity: int, model: GFBModel, n_recorded: int):
+        N, n = capacity, model.layout.size
+        nc, m = model.grid.n_columns, model.layout.block_size
+        nb = m + 4
+        z = np.zeros
+        self.shape_key = _shape_key(model)
+        self.capacity, self.n_recorded = capacity, n_recorded
+        self.Y = z((N, 5, n))
+        self.clocks, self.history, self.schedules = z((N, 4)), z(N, np.int64), z((N, 5))
+        self.IP, self.FP, self.SN, self.CS = z((N, 3), np.int64), z((N, 4)), z((N, nc)), z((N, nc))
+        self.kargs_of_slot: list[tuple | None] = [None] * N  # whose kernel args each row holds
+        self.jac = (z((N, nc, m, m)), z((N, nc, m, m)), z((N, nc, m, m)), z((N, nc, m, 4)))
+        self.jac += (z((N, nc, 4, m)), z((N, 4, 4)))
+        self.lu = (z((N, nc, m, m)), z((N, nc, m), np.int64), z((N, nc, m, m)), z((N, nc, m, nb)))
+        self.lu += (z((N, nb, nb)), z((N, nb), np.int64))
+        self.lu_static = (model.grid.n_rows, model.sparse_offdiagonal_blocks, K.size_tag(m))
+        self.opt_f, self.opt_i = z((N, 7)), z((N, 3), np.int64)
+        self.rec_t, self.rec_rows = z((N, 2)), z((N, 2), np.int64)
+        self.rec_bufs = np.empty((N, 0, n_recorded + 2))
+        self.stats, self.ext = z((N, 9), np.int64), z((N, 9))
+        self.forced, self.force_f = z(N, np.bool_), z((N, 3))
+        self.shocks, self.n_shocks = z((N, 0, 4)), z(N, np.int64)
+        self.codes = z(N, np.int64)
+
+    def fits(self, n_envs: int, model: GFBModel, n_recorded: int) -> bool:
+        return (
+            n_envs <= self.capacity and _shape_key(model) == self.shape_key and n_recorded == self.n_recorded
+        )
+
+    def reserve(self, rows: int, shocks: int) -> None:
+        """At least ``rows`` sample rows and ``shocks`` shock rows per env."""
+        N = self.capacity
+        if self.rec_bufs.shape[1] < rows:
+            self.rec_bufs = np.empty((N, rows, self.rec_bufs.shape[2]))
+        if self.shocks.shape[1] < shocks:
+            self.shocks = np.zeros((N, shocks, 4))
+
+
+def _shape_key(model: GFBModel) -> tuple:
+    """What the stacked arrays' shapes and the solver's static arguments depend on."""
+    g = model.grid
+    return (
+        model.layout.size,
+        g.n_columns,
+        g.n_rows,
+        model.layout.block_size,
+        model.sparse_offdiagonal_blocks,
+    )
+
+
+class BatchAdvance:
+    """Advance many :class:`TrapezoidalIntegrator` objects with one compiled, parallel call.
+
+    :meth:`advance` runs, for each integrator, exactly what its :meth:`TrapezoidalIntegrator.advance`
+    runs: the same Python preparation and finish, and the same compiled loop (:func:`_advance`, called
+    by :func:`_advance_batch` in a numba ``prange`` over the integrators), so every result and state is
+    bit for bit the one-by-one result, for any thread count.  Integrators may have different models of
+    one grid (e.g. randomised bearings), be forced (unbalance, shocks) or not; a failure (status
+    ``"failed"``/``"max_steps"``) is that integrator's only.  Integrators of different grids, or calls
+    with different recorded entries, are advanced one after the other (same results).
+
+    Args:
+        num_threads: numba threads of the call (``numba.set_num_threads``; at most
+            ``numba.config.NUMBA_NUM_THREADS``, the cores numba sees, which is the default).  The
+            environment variable ``NUMBA_NUM_THREADS`` caps it for the process.
+    """
+
+    def __init__(self, num_threads: int | None = None):
+        self.num_threads = num_threads
+        self._ws: _BatchWorkspace | None = None
+
+    @property
+    def num_threads(self) -> int:
+        return self._num_threads
+
+    @num_threads.setter
+    def num_threads(self, value: int | None) -> None:
+        limit = numba.config.NUMBA_NUM_THREADS
+        if value is None:
+            value = limit
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 1 <= value <= limit:
+            raise ValueError(
+                f"num_threads must be an integer in [1, {limit}] (NUMBA_NUM_THREADS), got {value!r}"
+            )
+        self._num_threads = int(value)
+
+    def advance(
+        self,
+        integrators: list[TrapezoidalIntegrator],
+        tau_end: list[float],
+        bearing_number: list[float | None],
+        foil_damping: list[float | None],
+        record_interval: float | None = None,
+        record_indices: np.ndarray | None = None,
+        max_steps: int = DEFAULT_MAX_STEPS,
+        raise_on_failure: bool = True,
+    ) -> list[AdvanceResult]:
+        """:meth:`TrapezoidalIntegrator.advance` of every integrator (``tau_end``, ``bearing_number``,
+        ``foil_damping``: one per integrator; the recording and ``max_steps`` are shared).  Bad
+        arguments raise as one call after the other would (the integrators before the bad one are
+        advanced).  With ``raise_on_failure`` an :class:`IntegrationError` is raised after all are
+        advanced, for the first one that failed."""
+        integs = list(integrators)
+        n = len(integs)
+        if len({id(x) for x in integs}) != n:
+            raise ValueError("integrators: each integrator may appear only once")
+        for name, v in (
+            ("tau_end", tau_end),
+            ("bearing_number", bearing_number),
+            ("foil_damping", foil_damping),
+        ):
+            if len(v) != n:
+                raise ValueError(f"{name}: {len(v)} values for {n} integrators")
+        calls: list[_Call] = []
+        try:
+            for k, integ in enumerate(integs):
+                calls.append(
+                    integ._prepare(
+                        tau_end[k],
+                        bearing_number[k],
+                        foil_damping[k],
+                        record_interval,
+                        record_indices,
+                        max_steps,
+                    )
+                )
+        except Exception:
+            self.run_prepared(integs[: len(calls)], calls)  # those before the bad one, as one by one
+            raise
+        results = self.run_prepared(integs, calls)
+        if raise_on_failure:
+            for r in results:
+                if r.status in (IntegrationStatus.FAILED, IntegrationStatus.MAX_STEPS):
+                    raise IntegrationError(r.message)
+        return results
+
+    def run_prepared(self, integs: list[TrapezoidalIntegrator], calls: list[_Call]) -> list[AdvanceResult]:
+        """The compiled part and the finish of calls prepared by ``integs[k]._prepare(...)`` (each
+        integrator once; used by the vector env, which prepares each env's call itself)."""
+        n = len(calls)
+        _choose_threading_layer()
+        if n == 0:
+            return []
+        model0 = integs[0].model
+        rec_idx = calls[0].recording.indices
+        key = _shape_key(model0)
+        if any(
+            _shape_key(it.model) != key
+            or c.recording.indices is not rec_idx
+            and not np.array_equal(c.recording.indices, rec_idx)
+            for it, c in zip(integs, calls, strict=True)
+        ):
+            return [self._one(it, c) for it, c in zip(integs, calls, strict=True)]
+        ws = self._ws
+        if ws is None or not ws.fits(n, model0, len(rec_idx)):
+            ws = self._ws = _BatchWorkspace(
+                max(n, ws.capacity if ws is not None else 0), model0, len(rec_idx)
+            )
+        ws.reserve(max(c.rec_buf.shape[0] for c in calls), max(len(c.st.shocks) for c in calls))
+        sts = [c.st for c in calls]
+        ws.Y[:n] = [s.arrays for s in sts]
+        ws.clocks[:n] = [(s.tau, s.step, s.previous_step, s.previous_step2) for s in sts]
+        ws.history[:n] = [s.history for s in sts]
+        ws.schedules[:n] = [c.schedule for c in calls]
+        ws.opt_f[:n] = [(o[0], o[1], o[2], o[3], o[4], o[7], o[8]) for o in (c.options for c in calls)]
+        ws.opt_i[:n] = [(o[5], o[6], o[9]) for o in (c.options for c in calls)]
+        ws.rec_t[:n] = [(c.recording.interval, c.recording.first_tau) for c in calls]
+        ws.rec_rows[:n] = [(c.first, c.rec_buf.shape[0]) for c in calls]
+        ws.stats[:n] = 0
+        ws.ext[:n] = _EXTREMES_START
+        for k, (it, c) in enumerate(zip(integs, calls, strict=True)):
+            if ws.kargs_of_slot[k] is not it._kernel_args:
+                ws.IP[k], ws.FP[k], ws.SN[k], ws.CS[k] = it._kernel_args
+                ws.kargs_of_slot[k] = it._kernel_args
+            if c.first:
+                ws.rec_bufs[k, 0] = c.rec_buf[0]
+            f = c.forcing
+            ws.forced[k] = f is not None
+            if f is not None:
+                ws.force_f[k] = (f.unbalance, f.angle, f.max_step)
+                ws.n_shocks[k] = len(f.shocks)
+                ws.shocks[k, : len(f.shocks)] = f.shocks
+        old_threads = numba.get_num_threads()
+        numba.set_num_threads(self._num_threads)
+        old_chunk = numba.set_parallel_chunksize(1)  # envs of unequal cost: one at a time to each thread
+        try:
+            _advance_batch(
+                ws.Y[:n], ws.clocks[:n], ws.history[:n], ws.schedules[:n],
+                ws.IP[:n], ws.FP[:n], ws.SN[:n], ws.CS[:n],
+                *(a[:n] for a in ws.jac), *(a[:n] for a in ws.lu), ws.lu_static,
+                ws.opt_f[:n], ws.opt_i[:n], rec_idx, ws.rec_t[:n], ws.rec_bufs[:n], ws.rec_rows[:n],
+                ws.stats[:n], ws.ext[:n], ws.forced[:n], ws.force_f[:n], ws.shocks[:n], ws.n_shocks[:n],
+                ws.codes[:n],
+            )  # fmt: skip
+        finally:
+            numba.set_parallel_chunksize(old_chunk)
+            numba.set_num_threads(old_threads)
+        clocks, history, codes = ws.clocks[:n].tolist(), ws.history[:n].tolist(), ws.codes[:n].tolist()
+        out = []
+        for k, (it, c) in enumerate(zip(integs, calls, strict=True)):
+            for j, a in enumerate(c.st.arrays):
+                a[:] = ws.Y[k, j]
+            c = c._replace(rec_buf=ws.rec_bufs[k, : c.rec_buf.shape[0]], stats=ws.stats[k], ext=ws.ext[k])
+            out.append(it._finish(c, codes[k], (*clocks[k], history[k]), False))
+        return out
+
+    @staticmethod
+    def _one(it: TrapezoidalIntegrator, c: _Call) -> AdvanceResult:
+        code, clock = _advance(
+            c.st.arrays, c.st.clock, c.schedule, it._kernel_args, it._jacobian, it._factorization,
+            c.options, c.recording, c.stats, c.ext, c.forcing,
+        )  # fmt: skip
+        return it._finish(c, code, clock, False)

@@ -1021,6 +1021,7 @@ class TrapezoidalIntegrator:
         self.factorization_ratio = o.factorization_ratio
         self.slow_newton_iterations = o.slow_newton_iterations
         self._kernel_args = model.kernel_args()
+        self._shape_key = _shape_key(model)  # BatchAdvance batches integrators of one shape
         self._record_key: tuple | None = None  # the last record_indices (see _record_indices)
         self._record_idx = _NO_INDICES
         self._jacobian = _Jacobian(**model.new_blocks())
@@ -1229,7 +1230,9 @@ class TrapezoidalIntegrator:
             call.st.arrays, call.st.clock, call.schedule, self._kernel_args, self._jacobian,
             self._factorization, call.options, call.recording, call.stats, call.ext, call.forcing,
         )  # fmt: skip
-        return self._finish(call, code, clock, raise_on_failure)
+        return self._finish(
+            call, code, clock, call.stats.tolist(), call.ext.tolist(), call.rec_buf, raise_on_failure
+        )
 
     def _record_indices(self, record_indices: np.ndarray | None) -> np.ndarray:
         """The recorded state entries: the rotor, then ``record_indices`` (checked; the last one is
@@ -1312,9 +1315,18 @@ class TrapezoidalIntegrator:
         )
 
     def _finish(
-        self, call: _Call, code: int, clock: tuple[float, float, float, float, int], raise_on_failure: bool
+        self,
+        call: _Call,
+        code: int,
+        clock: tuple[float, float, float, float, int],
+        counts: list[int],
+        ext: list[float],
+        rec_buf: np.ndarray,
+        raise_on_failure: bool,
     ) -> AdvanceResult:
-        """The integrator's new state and the call's result from the compiled loop's outputs."""
+        """The integrator's new state and the call's result from the compiled loop's outputs: its status
+        code, clock, counters and extremes (as lists) and its sample buffer (``call.rec_buf`` or the
+        batch's copy of it)."""
         st = call.st
         t0, lam0, lam1, dw0, dw1 = st.tau, *call.schedule[1:]
         span = call.span
@@ -1322,9 +1334,8 @@ class TrapezoidalIntegrator:
         theta = (t - t0) / span if span > 0 else 1.0
         lam_t = lam0 + (lam1 - lam0) * theta
         dw_t = dw0 + (dw1 - dw0) * theta
-        counts = call.stats.tolist()
         nrec = call.first + counts[_NREC]
-        rb = call.rec_buf[:nrec]
+        rb = rec_buf[:nrec]
         # theta' = Lambda is linear in time over the call: theta advances by the exact trapezoid
         angle = st.rotation_angle + (t - t0) * 0.5 * (lam0 + lam_t)
         self._stepper = new = st.advanced(
@@ -1352,7 +1363,6 @@ class TrapezoidalIntegrator:
             bearing_number=lam0 + (lam1 - lam0) * th,
             foil_damping=dw0 + (dw1 - dw0) * th,
         )
-        ext = call.ext.tolist()
         event = None
         if code == _TOUCHDOWN:
             event = TouchdownEvent(ext[_EVT], ext[_EVXI], ext[_EVETA], self.touchdown_film_thickness)
@@ -1551,14 +1561,10 @@ class BatchAdvance:
         if n == 0:
             return []
         model0 = integs[0].model
+        key = integs[0]._shape_key
+        rec_key = integs[0]._record_key
         rec_idx = calls[0].recording.indices
-        key = _shape_key(model0)
-        if any(
-            _shape_key(it.model) != key
-            or c.recording.indices is not rec_idx
-            and not np.array_equal(c.recording.indices, rec_idx)
-            for it, c in zip(integs, calls, strict=True)
-        ):
+        if any(it._shape_key != key or it._record_key != rec_key for it in integs):
             return [self._one(it, c) for it, c in zip(integs, calls, strict=True)]
         ws = self._ws
         if ws is None or not ws.fits(n, model0, len(rec_idx)):
@@ -1567,7 +1573,10 @@ class BatchAdvance:
             )
         ws.reserve(max(c.rec_buf.shape[0] for c in calls), max(len(c.st.shocks) for c in calls))
         sts = [c.st for c in calls]
-        ws.Y[:n] = [s.arrays for s in sts]
+        Y = ws.Y
+        for k, st in enumerate(sts):
+            Yk = Y[k]
+            Yk[0], Yk[1], Yk[2], Yk[3], Yk[4] = st.s, st.f, st.fprev, st.sprev, st.sprev2
         ws.clocks[:n] = [(s.tau, s.step, s.previous_step, s.previous_step2) for s in sts]
         ws.history[:n] = [s.history for s in sts]
         ws.schedules[:n] = [c.schedule for c in calls]
@@ -1605,12 +1614,13 @@ class BatchAdvance:
             numba.set_parallel_chunksize(old_chunk)
             numba.set_num_threads(old_threads)
         clocks, history, codes = ws.clocks[:n].tolist(), ws.history[:n].tolist(), ws.codes[:n].tolist()
+        counts, exts = ws.stats[:n].tolist(), ws.ext[:n].tolist()
         out = []
         for k, (it, c) in enumerate(zip(integs, calls, strict=True)):
-            for j, a in enumerate(c.st.arrays):
-                a[:] = ws.Y[k, j]
-            c = c._replace(rec_buf=ws.rec_bufs[k, : c.rec_buf.shape[0]], stats=ws.stats[k], ext=ws.ext[k])
-            out.append(it._finish(c, codes[k], (*clocks[k], history[k]), False))
+            st, Yk = c.st, Y[k]
+            st.s[:], st.f[:], st.fprev[:], st.sprev[:], st.sprev2[:] = Yk
+            rec_buf = ws.rec_bufs[k, : c.rec_buf.shape[0]]
+            out.append(it._finish(c, codes[k], (*clocks[k], history[k]), counts[k], exts[k], rec_buf, False))
         return out
 
     @staticmethod
@@ -1619,4 +1629,4 @@ class BatchAdvance:
             c.st.arrays, c.st.clock, c.schedule, it._kernel_args, it._jacobian, it._factorization,
             c.options, c.recording, c.stats, c.ext, c.forcing,
         )  # fmt: skip
-        return it._finish(c, code, clock, False)
+        return it._finish(c, code, clock, c.stats.tolist(), c.ext.tolist(), c.rec_buf, False)

@@ -249,3 +249,23 @@ def test_sync_vector_env_is_the_reference():
     # the reference of the comparisons is Gymnasium's own SyncVectorEnv, not the native env again
     _, sync = _pair("gfb_env/RunUp-v0")
     assert type(sync) is SyncVectorEnv
+
+
+def test_the_thread_count_of_the_native_env():
+    """``num_threads`` (the compiled plant stage's threads) changes no bit; bad values are refused."""
+    import numba
+
+    top = numba.config.NUMBA_NUM_THREADS
+    one = gym.make_vec("gfb_env/RunUp-v1", num_envs=N, num_threads=1, **_kwargs("gfb_env/RunUp-v1"))
+    many = gym.make_vec("gfb_env/RunUp-v1", num_envs=N, **_kwargs("gfb_env/RunUp-v1"))
+    assert one.num_threads == 1 and many.num_threads == top
+    rng = np.random.default_rng(2)
+    _assert_same(one.reset(seed=1), many.reset(seed=1))
+    for _ in range(4):
+        a = _actions(rng)
+        _assert_same(one.step(a), many.step(a))
+    many.num_threads = 1
+    assert many.num_threads == 1
+    for bad in (0, top + 1, 2.0):
+        with pytest.raises(ValueError, match="num_threads"):
+            gym.make_vec("gfb_env/RunUp-v0", num_envs=1, num_threads=bad)

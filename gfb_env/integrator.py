@@ -631,16 +631,17 @@ def _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats, ext, forcing):
 
 
 # ------------------------------------------------------------------------------------------------
-@njit(parallel=True, cache=True)
-def _advance_batch(
+@njit(cache=True)
+def _advance_env(
+    i,
     Y, clocks, history, schedules, IP, FP, SN, CS,  # states, clocks, schedules, kernel args
-    Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Yw, Slu, Spiv, lu_static,  # per-env workspace
+    Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Yw, Slu, Spiv, n_rows, sparse, size_tag,  # workspace
     opt_f, opt_i, rec_idx, rec_t, rec_bufs, rec_rows, stats, ext,  # options, recording, outputs
     forced, force_f, shocks, n_shocks, codes,  # the forcing per env, the status codes (out)
 ):  # fmt: skip
-    """:func:`_advance` of env i = 0..N-1 in a ``prange``: each env's call gets exactly the argument
-    groups (types included) that :meth:`TrapezoidalIntegrator.advance` passes, built from row i of the
-    stacked arrays, so it runs the same compiled loop and its result is bit for bit the single call's.
+    """:func:`_advance` of env i of a batch: it gets exactly the argument groups (types included) that
+    :meth:`TrapezoidalIntegrator.advance` passes, built from row i of the stacked arrays, so it runs the
+    same compiled loop and its result is bit for bit the single call's.
 
     Y (N, 5, n): y per env; clocks (N, 4) and history (N,): the clock (updated in place); schedules
     (N, 5); IP, FP, SN, CS: the stacked kernel args; Ad..Spiv: each env's Jacobian and factorisation
@@ -650,31 +651,65 @@ def _advance_batch(
     (interval, first_tau); rec_bufs (N, cap, k) with rec_rows (N, 2): the rows [lo, hi) each env's
     loop records into; stats, ext (N, 9): counters and extremes; forced (N,): whether env i passes a
     :class:`_Forcing` (force_f (N, 3): unbalance, angle, max_step; shocks (N, kmax, 4) with n_shocks)
-    or None; codes (N,): the status codes (out).  A failure is a status of its env only."""
+    or None; codes (N,): the status codes (out).  A failure is a status of its env only.  (The
+    batch functions unpack lu_static before their loop: a nested tuple cannot enter a parallel loop.)"""
+    y = (Y[i, 0], Y[i, 1], Y[i, 2], Y[i, 3], Y[i, 4])
+    clock = (clocks[i, 0], clocks[i, 1], clocks[i, 2], clocks[i, 3], history[i])
+    schedule = (schedules[i, 0], schedules[i, 1], schedules[i, 2], schedules[i, 3], schedules[i, 4])
+    kargs = (IP[i], FP[i], SN[i], CS[i])
+    jac = _Jacobian(Ad[i], Ap[i], Am[i], Er[i], Rr[i], Srr[i])
+    lu = _Factorization(Dlu[i], Dpiv[i], Uhat[i], Yw[i], Slu[i], Spiv[i], n_rows, sparse, size_tag)
+    opt = _Options(
+        opt_f[i, 0], opt_f[i, 1], opt_f[i, 2], opt_f[i, 3], opt_f[i, 4], opt_i[i, 0], opt_i[i, 1],
+        opt_f[i, 5], opt_f[i, 6], opt_i[i, 2],
+    )  # fmt: skip
+    rec = _Recording(rec_idx, rec_t[i, 0], rec_t[i, 1], rec_bufs[i, rec_rows[i, 0] : rec_rows[i, 1]])
+    if forced[i]:
+        forcing = _Forcing(force_f[i, 0], force_f[i, 1], shocks[i, : n_shocks[i]], force_f[i, 2])
+        code, c = _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats[i], ext[i], forcing)
+    else:
+        code, c = _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats[i], ext[i], None)
+    codes[i] = code
+    clocks[i, 0] = c[0]
+    clocks[i, 1] = c[1]
+    clocks[i, 2] = c[2]
+    clocks[i, 3] = c[3]
+    history[i] = c[4]
+
+
+@njit(parallel=True, cache=True)
+def _advance_batch(
+    Y, clocks, history, schedules, IP, FP, SN, CS,  # states, clocks, schedules, kernel args
+    Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Yw, Slu, Spiv, lu_static,  # per-env workspace
+    opt_f, opt_i, rec_idx, rec_t, rec_bufs, rec_rows, stats, ext,  # options, recording, outputs
+    forced, force_f, shocks, n_shocks, codes,  # the forcing per env, the status codes (out)
+):  # fmt: skip
+    """:func:`_advance_env` of env i = 0..N-1 in a ``prange`` (the arguments: see there)."""
     n_rows, sparse, size_tag = lu_static
     for i in prange(Y.shape[0]):
-        y = (Y[i, 0], Y[i, 1], Y[i, 2], Y[i, 3], Y[i, 4])
-        clock = (clocks[i, 0], clocks[i, 1], clocks[i, 2], clocks[i, 3], history[i])
-        schedule = (schedules[i, 0], schedules[i, 1], schedules[i, 2], schedules[i, 3], schedules[i, 4])
-        kargs = (IP[i], FP[i], SN[i], CS[i])
-        jac = _Jacobian(Ad[i], Ap[i], Am[i], Er[i], Rr[i], Srr[i])
-        lu = _Factorization(Dlu[i], Dpiv[i], Uhat[i], Yw[i], Slu[i], Spiv[i], n_rows, sparse, size_tag)
-        opt = _Options(
-            opt_f[i, 0], opt_f[i, 1], opt_f[i, 2], opt_f[i, 3], opt_f[i, 4], opt_i[i, 0], opt_i[i, 1],
-            opt_f[i, 5], opt_f[i, 6], opt_i[i, 2],
+        _advance_env(
+            i, Y, clocks, history, schedules, IP, FP, SN, CS, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Yw,
+            Slu, Spiv, n_rows, sparse, size_tag, opt_f, opt_i, rec_idx, rec_t, rec_bufs, rec_rows, stats,
+            ext, forced, force_f, shocks, n_shocks, codes,
         )  # fmt: skip
-        rec = _Recording(rec_idx, rec_t[i, 0], rec_t[i, 1], rec_bufs[i, rec_rows[i, 0] : rec_rows[i, 1]])
-        if forced[i]:
-            forcing = _Forcing(force_f[i, 0], force_f[i, 1], shocks[i, : n_shocks[i]], force_f[i, 2])
-            code, c = _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats[i], ext[i], forcing)
-        else:
-            code, c = _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats[i], ext[i], None)
-        codes[i] = code
-        clocks[i, 0] = c[0]
-        clocks[i, 1] = c[1]
-        clocks[i, 2] = c[2]
-        clocks[i, 3] = c[3]
-        history[i] = c[4]
+
+
+@njit(cache=True)
+def _advance_batch_serial(
+    Y, clocks, history, schedules, IP, FP, SN, CS,  # states, clocks, schedules, kernel args
+    Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Yw, Slu, Spiv, lu_static,  # per-env workspace
+    opt_f, opt_i, rec_idx, rec_t, rec_bufs, rec_rows, stats, ext,  # options, recording, outputs
+    forced, force_f, shocks, n_shocks, codes,  # the forcing per env, the status codes (out)
+):  # fmt: skip
+    """:func:`_advance_env` of env i = 0..N-1 one after the other, in the calling thread: for one
+    thread or one env (numba's parallel launch costs ~50 us of CPU per call even then, measured)."""
+    n_rows, sparse, size_tag = lu_static
+    for i in range(Y.shape[0]):
+        _advance_env(
+            i, Y, clocks, history, schedules, IP, FP, SN, CS, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Yw,
+            Slu, Spiv, n_rows, sparse, size_tag, opt_f, opt_i, rec_idx, rec_t, rec_bufs, rec_rows, stats,
+            ext, forced, force_f, shocks, n_shocks, codes,
+        )  # fmt: skip
 
 
 # ------------------------------------------------------------------------------------------------
@@ -1623,22 +1658,26 @@ class BatchAdvance:
                 ws.force_f[k] = (f.unbalance, f.angle, f.max_step)
                 ws.n_shocks[k] = len(f.shocks)
                 ws.shocks[k, : len(f.shocks)] = f.shocks
-        old_threads = numba.get_num_threads()
-        numba.set_num_threads(self._num_threads)
-        old_chunk = numba.set_parallel_chunksize(1)  # envs of unequal cost: one at a time to each thread
-        try:
-            self._launch(
-                (ws.lu_static, len(rec_idx)),
-                ws.Y[:n], ws.clocks[:n], ws.history[:n], ws.schedules[:n],
-                ws.IP[:n], ws.FP[:n], ws.SN[:n], ws.CS[:n],
-                *(a[:n] for a in ws.jac), *(a[:n] for a in ws.lu), ws.lu_static,
-                ws.opt_f[:n], ws.opt_i[:n], rec_idx, ws.rec_t[:n], ws.rec_bufs[:n], ws.rec_rows[:n],
-                ws.stats[:n], ws.ext[:n], ws.forced[:n], ws.force_f[:n], ws.shocks[:n], ws.n_shocks[:n],
-                ws.codes[:n],
-            )  # fmt: skip
-        finally:
-            numba.set_parallel_chunksize(old_chunk)
-            numba.set_num_threads(old_threads)
+        args = (
+            ws.Y[:n], ws.clocks[:n], ws.history[:n], ws.schedules[:n], ws.IP[:n], ws.FP[:n], ws.SN[:n],
+            ws.CS[:n], *(a[:n] for a in ws.jac), *(a[:n] for a in ws.lu), ws.lu_static, ws.opt_f[:n],
+            ws.opt_i[:n], rec_idx, ws.rec_t[:n], ws.rec_bufs[:n], ws.rec_rows[:n], ws.stats[:n], ws.ext[:n],
+            ws.forced[:n], ws.force_f[:n], ws.shocks[:n], ws.n_shocks[:n], ws.codes[:n],
+        )  # fmt: skip
+        threads = min(self._num_threads, n)
+        if threads == 1:
+            self._launch(_advance_batch_serial, (ws.lu_static, len(rec_idx)), *args)
+        else:
+            old_threads = numba.get_num_threads()
+            numba.set_num_threads(threads)
+            # many envs of unequal cost: one at a time to each thread (dynamic scheduling costs ~30 us
+            # more per launch, measured; with a few envs per thread the static split is cheaper)
+            old_chunk = numba.set_parallel_chunksize(1 if n > 4 * threads else 0)
+            try:
+                self._launch(_advance_batch, (ws.lu_static, len(rec_idx)), *args)
+            finally:
+                numba.set_parallel_chunksize(old_chunk)
+                numba.set_num_threads(old_threads)
         clocks, history, codes = ws.clocks[:n].tolist(), ws.history[:n].tolist(), ws.codes[:n].tolist()
         counts, exts = ws.stats[:n].tolist(), ws.ext[:n].tolist()
         out = []
@@ -1650,9 +1689,9 @@ class BatchAdvance:
         return out
 
     @staticmethod
-    def _launch(key: tuple, *args: Any) -> None:
+    def _launch(kernel: Any, key: tuple, *args: Any) -> None:
         """The compiled batch call (a method: ``bench_env`` times it)."""
-        _call_compiled(_advance_batch, key, *args)
+        _call_compiled(kernel, key, *args)
 
     @staticmethod
     def _one(it: TrapezoidalIntegrator, c: _Call) -> AdvanceResult:

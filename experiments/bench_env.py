@@ -143,17 +143,19 @@ class _CompiledClock:
     def __init__(self) -> None:
         from gfb_env.integrator import BatchAdvance
 
-        self.cls, self.original, self.seconds = BatchAdvance, BatchAdvance.__dict__["_launch"], 0.0
+        self.cls, self.original = BatchAdvance, BatchAdvance.__dict__["_launch"]
+        self.seconds = self.cpu_seconds = 0.0
 
     def __enter__(self) -> _CompiledClock:
         launch = self.original.__func__
 
         def timed(*args):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             try:
                 return launch(*args)
             finally:
                 self.seconds += time.perf_counter() - t0
+                self.cpu_seconds += time.process_time() - c0
 
         self.cls._launch = staticmethod(timed)
         return self
@@ -164,14 +166,23 @@ class _CompiledClock:
 
 def _native_profile(env_id: str, action: np.ndarray, n: int, env_steps: int, seed: int) -> dict:
     """What limits the native vector env: per env step, the wall time of the compiled batch call with
-    1 and 2 threads and the Python around it; the prange's parallel efficiency t1 / (2 t2)."""
+    1 and 2 threads and the Python around it; the prange's parallel efficiency t1 / (2 t2).  With one
+    thread also the process's CPU time (the compiled call runs in the calling thread): unlike the wall
+    time it does not grow with other processes' load."""
     out: dict = {"num_envs": n}
     for threads in (1, 2):
         envs = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", num_threads=threads)
+        a = np.tile(action, (n, 1))
+        batches = max(3, env_steps // n)
         with _CompiledClock() as clock:
-            rate = _vector_rate(envs, action, env_steps, seed)
-            batches = max(3, env_steps // n) + 1  # the warm-up step is timed by the clock too
-        envs.close()
+            envs.reset(seed=seed)
+            envs.step(a)  # warm-up
+            clock.seconds = clock.cpu_seconds = 0.0
+            t0, c0 = time.perf_counter(), time.process_time()
+            for _ in range(batches):
+                envs.step(a)
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        rate = n * batches / wall
         compiled_us = clock.seconds / (batches * n) * 1e6
         out[f"threads_{threads}"] = {
             "steps_per_s": rate,
@@ -180,9 +191,51 @@ def _native_profile(env_id: str, action: np.ndarray, n: int, env_steps: int, see
             "python_us_per_env_step": 1e6 / rate - compiled_us,
             "load_1min": _load(),
         }
+        if threads == 1:
+            per = 1e6 / (batches * n)
+            out["threads_1"]["cpu_us_per_env_step"] = cpu * per
+            out["threads_1"]["compiled_cpu_us_per_env_step"] = clock.cpu_seconds * per
+            out["threads_1"]["python_cpu_us_per_env_step"] = (cpu - clock.cpu_seconds) * per
     t1, t2 = out["threads_1"]["compiled_us_per_env_step"], out["threads_2"]["compiled_us_per_env_step"]
     out["parallel_efficiency_2_threads"] = t1 / (2.0 * t2)
+    out["single_cpu"] = _single_cpu_profile(env_id, action, env_steps, seed)
     return out
+
+
+def _single_cpu_profile(env_id: str, action: np.ndarray, env_steps: int, seed: int) -> dict:
+    """One env's CPU time per step: the compiled call (``gfb_env.integrator._call_compiled``) and the
+    Python around it."""
+    import gfb_env.integrator as integrator
+
+    original, spent = integrator._call_compiled, [0.0]
+
+    def timed(*args):
+        c0 = time.process_time()
+        try:
+            return original(*args)
+        finally:
+            spent[0] += time.process_time() - c0
+
+    env = gym.make(env_id)
+    env.reset(seed=seed)
+    env.step(action)
+    integrator._call_compiled = timed
+    try:
+        c0 = time.process_time()
+        for _ in range(env_steps):
+            _, _, term, trunc, _ = env.step(action)
+            if term or trunc:
+                env.reset()
+        cpu = time.process_time() - c0
+    finally:
+        integrator._call_compiled = original
+    env.close()
+    per = 1e6 / env_steps
+    return {
+        "cpu_us_per_env_step": cpu * per,
+        "compiled_cpu_us_per_env_step": spent[0] * per,
+        "python_cpu_us_per_env_step": (cpu - spent[0]) * per,
+    }
 
 
 def vector_throughput(scenario: str, env_steps: int, seed: int, ns: tuple[int, ...], sync_ns, log) -> dict:
@@ -388,6 +441,11 @@ def main() -> None:
             f"  {t} thread(s): {p['steps_per_s']:7.0f} env steps/s = {p['us_per_env_step']:6.1f} us "
             f"per env step: compiled {p['compiled_us_per_env_step']:6.1f}, "
             f"Python {p['python_us_per_env_step']:6.1f} (load {p['load_1min']:.2f})"
+        )
+    for label, p1 in (("native, 1 thread", prof["threads_1"]), ("one env", prof["single_cpu"])):
+        log(
+            f"  {label}, CPU time: {p1['cpu_us_per_env_step']:6.1f} us per env step: compiled "
+            f"{p1['compiled_cpu_us_per_env_step']:6.1f}, Python {p1['python_cpu_us_per_env_step']:6.1f}"
         )
     log(
         "  parallel efficiency of the compiled batch with 2 threads: "

@@ -1476,7 +1476,7 @@ def _choose_threading_layer() -> None:
     if os.environ.get("NUMBA_THREADING_LAYER") is None and numba.config.THREADING_LAYER == "default":
         from numba.np.ufunc import parallel
 
-        if not parallel._is_initialized:
+        if not getattr(parallel, "_is_initialized", True):  # (numba internals: when unknown, leave it)
             numba.config.THREADING_LAYER = "workqueue"
 
 

@@ -56,11 +56,13 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
+import os
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
+import numba
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from gfb_env import _kernels as K
 from gfb_env import forcing as F
@@ -73,6 +75,7 @@ from gfb_env.model import GFBModel
 
 __all__ = [
     "TrapezoidalIntegrator",
+    "BatchAdvance",
     "Trajectory",
     "AdvanceResult",
     "TouchdownEvent",
@@ -179,6 +182,30 @@ class _Forcing(NamedTuple):
 
 
 _NO_SHOCKS = np.zeros((0, 4))
+#: The default ``max_steps`` of one :meth:`TrapezoidalIntegrator.advance`.
+DEFAULT_MAX_STEPS = 10_000_000
+_NO_INDICES = np.zeros(0, dtype=np.int64)
+# the extremes' start (min H, xi min/max, eta min/max, max eccentricity, touchdown time, xi, eta)
+_EXTREMES_START = np.array([np.inf, np.inf, -np.inf, np.inf, -np.inf, 0.0, np.nan, np.nan, np.nan])
+
+
+class _Call(NamedTuple):
+    """One prepared call of the compiled loop (:meth:`TrapezoidalIntegrator._prepare`): its arguments
+    and what :meth:`TrapezoidalIntegrator._finish` needs besides the loop's outputs."""
+
+    st: StepperState  # the state the call starts from (its arrays are advanced in place)
+    schedule: tuple  # (tau_end, Lambda_0, Lambda_1, D_W0, D_W1)
+    span: float
+    rate: float  # theta'' of the call's ramp
+    options: _Options
+    recording: _Recording
+    rec_buf: np.ndarray  # the whole sample buffer (a sample at the start in row 0 when first == 1)
+    first: int
+    stats: np.ndarray
+    ext: np.ndarray
+    forcing: _Forcing | None
+    max_steps: Any  # as passed (it appears in the max_steps message)
+
 
 #: Default of ``steps_per_revolution``: with an unbalance the step is at most 1/32 of a revolution.  The
 #: error control alone (absolute tolerance 3e-4) lets small forced orbits through with errors of 6-16 %
@@ -604,6 +631,88 @@ def _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats, ext, forcing):
 
 
 # ------------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _advance_env(
+    i,
+    Y, clocks, history, schedules, IP, FP, SN, CS,  # states, clocks, schedules, kernel args
+    Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Yw, Slu, Spiv, n_rows, sparse, size_tag,  # workspace
+    opt_f, opt_i, rec_idx, rec_t, rec_bufs, rec_rows, stats, ext,  # options, recording, outputs
+    forced, force_f, shocks, n_shocks, codes,  # the forcing per env, the status codes (out)
+):  # fmt: skip
+    """:func:`_advance` of env i of a batch: it gets exactly the argument groups (types included) that
+    :meth:`TrapezoidalIntegrator.advance` passes, built from row i of the stacked arrays, so it runs the
+    same compiled loop and its result is bit for bit the single call's.
+
+    Y (N, 5, n): y per env; clocks (N, 4) and history (N,): the clock (updated in place); schedules
+    (N, 5); IP, FP, SN, CS: the stacked kernel args; Ad..Spiv: each env's Jacobian and factorisation
+    workspace (every call evaluates J first, so it carries nothing from call to call); lu_static:
+    (n_rows, sparse, size_tag), the same for the batch; opt_f (N, 7) / opt_i (N, 3): the float / int
+    fields of :class:`_Options`; rec_idx: the recorded entries (the same for the batch); rec_t (N, 2):
+    (interval, first_tau); rec_bufs (N, cap, k) with rec_rows (N, 2): the rows [lo, hi) each env's
+    loop records into; stats, ext (N, 9): counters and extremes; forced (N,): whether env i passes a
+    :class:`_Forcing` (force_f (N, 3): unbalance, angle, max_step; shocks (N, kmax, 4) with n_shocks)
+    or None; codes (N,): the status codes (out).  A failure is a status of its env only.  (The
+    batch functions unpack lu_static before their loop: a nested tuple cannot enter a parallel loop.)"""
+    y = (Y[i, 0], Y[i, 1], Y[i, 2], Y[i, 3], Y[i, 4])
+    clock = (clocks[i, 0], clocks[i, 1], clocks[i, 2], clocks[i, 3], history[i])
+    schedule = (schedules[i, 0], schedules[i, 1], schedules[i, 2], schedules[i, 3], schedules[i, 4])
+    kargs = (IP[i], FP[i], SN[i], CS[i])
+    jac = _Jacobian(Ad[i], Ap[i], Am[i], Er[i], Rr[i], Srr[i])
+    lu = _Factorization(Dlu[i], Dpiv[i], Uhat[i], Yw[i], Slu[i], Spiv[i], n_rows, sparse, size_tag)
+    opt = _Options(
+        opt_f[i, 0], opt_f[i, 1], opt_f[i, 2], opt_f[i, 3], opt_f[i, 4], opt_i[i, 0], opt_i[i, 1],
+        opt_f[i, 5], opt_f[i, 6], opt_i[i, 2],
+    )  # fmt: skip
+    rec = _Recording(rec_idx, rec_t[i, 0], rec_t[i, 1], rec_bufs[i, rec_rows[i, 0] : rec_rows[i, 1]])
+    if forced[i]:
+        forcing = _Forcing(force_f[i, 0], force_f[i, 1], shocks[i, : n_shocks[i]], force_f[i, 2])
+        code, c = _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats[i], ext[i], forcing)
+    else:
+        code, c = _advance(y, clock, schedule, kargs, jac, lu, opt, rec, stats[i], ext[i], None)
+    codes[i] = code
+    clocks[i, 0] = c[0]
+    clocks[i, 1] = c[1]
+    clocks[i, 2] = c[2]
+    clocks[i, 3] = c[3]
+    history[i] = c[4]
+
+
+@njit(parallel=True, cache=True)
+def _advance_batch(
+    Y, clocks, history, schedules, IP, FP, SN, CS,  # states, clocks, schedules, kernel args
+    Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Yw, Slu, Spiv, lu_static,  # per-env workspace
+    opt_f, opt_i, rec_idx, rec_t, rec_bufs, rec_rows, stats, ext,  # options, recording, outputs
+    forced, force_f, shocks, n_shocks, codes,  # the forcing per env, the status codes (out)
+):  # fmt: skip
+    """:func:`_advance_env` of env i = 0..N-1 in a ``prange`` (the arguments: see there)."""
+    n_rows, sparse, size_tag = lu_static
+    for i in prange(Y.shape[0]):
+        _advance_env(
+            i, Y, clocks, history, schedules, IP, FP, SN, CS, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Yw,
+            Slu, Spiv, n_rows, sparse, size_tag, opt_f, opt_i, rec_idx, rec_t, rec_bufs, rec_rows, stats,
+            ext, forced, force_f, shocks, n_shocks, codes,
+        )  # fmt: skip
+
+
+@njit(cache=True)
+def _advance_batch_serial(
+    Y, clocks, history, schedules, IP, FP, SN, CS,  # states, clocks, schedules, kernel args
+    Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Yw, Slu, Spiv, lu_static,  # per-env workspace
+    opt_f, opt_i, rec_idx, rec_t, rec_bufs, rec_rows, stats, ext,  # options, recording, outputs
+    forced, force_f, shocks, n_shocks, codes,  # the forcing per env, the status codes (out)
+):  # fmt: skip
+    """:func:`_advance_env` of env i = 0..N-1 one after the other, in the calling thread: for one
+    thread or one env (numba's parallel launch costs ~50 us of CPU per call even then, measured)."""
+    n_rows, sparse, size_tag = lu_static
+    for i in range(Y.shape[0]):
+        _advance_env(
+            i, Y, clocks, history, schedules, IP, FP, SN, CS, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Yw,
+            Slu, Spiv, n_rows, sparse, size_tag, opt_f, opt_i, rec_idx, rec_t, rec_bufs, rec_rows, stats,
+            ext, forced, force_f, shocks, n_shocks, codes,
+        )  # fmt: skip
+
+
+# ------------------------------------------------------------------------------------------------
 def _check_unbalance(unbalance: Unbalance | None) -> None:
     if unbalance is not None and not isinstance(unbalance, Unbalance):
         raise ValueError(f"unbalance must be an Unbalance or None, got {type(unbalance).__name__}")
@@ -634,6 +743,22 @@ class IntegratorStatistics:
 
     def __add__(self, other: IntegratorStatistics) -> IntegratorStatistics:
         return IntegratorStatistics.from_array(self.as_array() + other.as_array())
+
+    def plus(self, counts: list[int]) -> IntegratorStatistics:
+        """These counters plus the compiled loop's ``counts`` (a list in the field order; plain ints:
+        the arrays of ``+`` cost ~8 us per control step)."""
+        s = self
+        return IntegratorStatistics(
+            s.steps + counts[0],
+            s.rejected_steps + counts[1],
+            s.newton_failures + counts[2],
+            s.jacobians + counts[3],
+            s.factorizations + counts[4],
+            s.rhs_evaluations + counts[5],
+            s.recorded_samples + counts[6],
+            s.inadmissible_iterates + counts[7],
+            s.diverged_iterations + counts[8],
+        )
 
 
 _STATISTICS_FIELDS = tuple(f.name for f in dataclasses.fields(IntegratorStatistics))
@@ -742,6 +867,34 @@ class StepperState:
             previous_step2=float(previous_step2),
             history=int(history),
         )
+
+    def advanced(
+        self,
+        clock: tuple[float, float, float, float, int],
+        *,
+        bearing_number: float,
+        foil_damping: float,
+        counts: list[int],
+        last_record_tau: float,
+        rotation_angle: float,
+        rotation_acceleration: float,
+        shocks: tuple[HalfSineShock, ...],
+    ) -> StepperState:
+        """The state after a compiled call: the same (advanced in place) arrays, the loop's ``clock``
+        and the rest as given (one constructor call: two ``dataclasses.replace`` cost ~10 us)."""
+        tau, step, previous_step, previous_step2, history = clock
+        # the frozen dataclass's __init__ sets its 18 fields one object.__setattr__ at a time (~3 us);
+        # the instance dict filled at once holds the same fields (no __post_init__, no defaults left)
+        new = object.__new__(StepperState)
+        new.__dict__.update(
+            s=self.s, f=self.f, fprev=self.fprev, sprev=self.sprev, sprev2=self.sprev2, tau=float(tau),
+            step=float(step), previous_step=float(previous_step), previous_step2=float(previous_step2),
+            history=int(history), bearing_number=bearing_number, foil_damping=foil_damping,
+            statistics=self.statistics.plus(counts), last_record_tau=last_record_tau,
+            rotation_angle=rotation_angle, rotation_acceleration=rotation_acceleration,
+            unbalance=self.unbalance, shocks=shocks,
+        )  # fmt: skip
+        return new
 
     def as_dict(self) -> dict[str, Any]:
         """The fields as a dict (arrays copied), plus ``lam``/``dw``: aliases of the operating point for
@@ -909,6 +1062,9 @@ class TrapezoidalIntegrator:
         self.factorization_ratio = o.factorization_ratio
         self.slow_newton_iterations = o.slow_newton_iterations
         self._kernel_args = model.kernel_args()
+        self._shape_key = _shape_key(model)  # BatchAdvance batches integrators of one shape
+        self._record_key: tuple | None = None  # the last record_indices (see _record_indices)
+        self._record_idx = _NO_INDICES
         self._jacobian = _Jacobian(**model.new_blocks())
         nc, m = model.grid.n_columns, model.layout.block_size
         nb = m + 4
@@ -1089,7 +1245,7 @@ class TrapezoidalIntegrator:
         foil_damping: float | None = None,
         record_interval: float | None = None,
         record_indices: np.ndarray | None = None,
-        max_steps: int = 10_000_000,
+        max_steps: int = DEFAULT_MAX_STEPS,
         raise_on_failure: bool = True,
     ) -> AdvanceResult:
         """Integrate to ``tau_end`` with Lambda and D_W ramped linearly from their current values to
@@ -1103,7 +1259,48 @@ class TrapezoidalIntegrator:
         below ``min_step`` or ``max_steps`` is exceeded, raises :class:`IntegrationError` (or returns
         ``status == "failed"`` / ``"max_steps"`` when ``raise_on_failure`` is False); the state is
         then the last accepted one, never NaN.
+
+        Three parts: :meth:`_prepare` (Python: checks and the compiled call's arguments), the compiled
+        loop :func:`_advance`, :meth:`_finish` (Python: the new :class:`StepperState` and the result).
+        :func:`advance_batch` runs the same parts for many integrators with one compiled call.
         """
+        call = self._prepare(
+            tau_end, bearing_number, foil_damping, record_interval, record_indices, max_steps
+        )
+        code, clock = _call_compiled(
+            _advance, (self._factorization.size_tag, call.forcing is None),
+            call.st.arrays, call.st.clock, call.schedule, self._kernel_args, self._jacobian,
+            self._factorization, call.options, call.recording, call.stats, call.ext, call.forcing,
+        )  # fmt: skip
+        return self._finish(
+            call, code, clock, call.stats.tolist(), call.ext.tolist(), call.rec_buf, raise_on_failure
+        )
+
+    def _record_indices(self, record_indices: np.ndarray | None) -> np.ndarray:
+        """The recorded state entries: the rotor, then ``record_indices`` (checked; the last one is
+        kept, so an env that records the same probes every control step builds them once)."""
+        extra = _NO_INDICES if record_indices is None else np.asarray(record_indices, np.int64)
+        key = (extra.shape, extra.tobytes())
+        if key == self._record_key:
+            return self._record_idx
+        if extra.size and (extra.min() < 0 or extra.max() >= self.model.layout.size):
+            raise ValueError("record_indices out of range")
+        L = self.model.layout
+        rec_idx = np.concatenate([np.arange(L.rotor_offset, L.size, dtype=np.int64), extra])
+        self._record_key, self._record_idx = key, rec_idx
+        return rec_idx
+
+    def _prepare(
+        self,
+        tau_end: float,
+        bearing_number: float | None,
+        foil_damping: float | None,
+        record_interval: float | None,
+        record_indices: np.ndarray | None,
+        max_steps: int,
+    ) -> _Call:
+        """Check one call's arguments and build the compiled loop's (nothing is integrated yet; the
+        unbalance's k at the start may move to this call's theta'', see :meth:`_forcing_of_call`)."""
         st = self._stepper
         lam0, dw0 = st.bearing_number, st.foil_damping
         lam1 = lam0 if bearing_number is None else float(bearing_number)
@@ -1111,17 +1308,10 @@ class TrapezoidalIntegrator:
         self.model.check_operating_point(lam1, dw1)
         if not math.isfinite(tau_end):
             raise ValueError(f"tau_end must be finite, got {tau_end!r}")
-        t0 = self.tau
+        t0 = st.tau
         if tau_end < t0:
             raise ValueError(f"tau_end must not be before the current time {t0}, got {tau_end}")
-        L = self.model.layout
-        rot = np.arange(L.rotor_offset, L.size, dtype=np.int64)
-        extra = (
-            np.zeros(0, dtype=np.int64) if record_indices is None else np.asarray(record_indices, np.int64)
-        )
-        if extra.size and (extra.min() < 0 or extra.max() >= L.size):
-            raise ValueError("record_indices out of range")
-        rec_idx = np.concatenate([rot, extra])
+        rec_idx = self._record_indices(record_indices)
         if record_interval is None:
             rec_dt = math.inf
             rec_next = math.inf
@@ -1137,8 +1327,6 @@ class TrapezoidalIntegrator:
             rec_next = k0 * rec_dt
             cap = max(int(math.floor((tau_end - rec_next) / rec_dt + 1e-9)) + 2, 0)
         rec_buf = np.empty((cap, len(rec_idx) + 2))
-        stats = np.zeros(9, dtype=np.int64)
-        ext = np.array([np.inf, np.inf, -np.inf, np.inf, -np.inf, 0.0, np.nan, np.nan, np.nan])
         first = 0
         if cap and rec_next <= t0 + 1e-9 * rec_dt:  # a sample exactly at the start
             rec_buf[0, 0] = t0
@@ -1151,50 +1339,75 @@ class TrapezoidalIntegrator:
             int(max_steps), self.max_newton_iterations, self.newton_tol, self.factorization_ratio,
             self.slow_newton_iterations,
         )  # fmt: skip
-        recording = _Recording(rec_idx, rec_dt, float(rec_next), rec_buf[first:])
         span = float(tau_end) - t0
         forcing, rate = self._forcing_of_call(st, span, lam0, lam1)
-        code, clock = _advance(
-            st.arrays, st.clock, (float(tau_end), lam0, lam1, dw0, dw1), self._kernel_args,
-            self._jacobian, self._factorization, options, recording, stats, ext, forcing,
-        )  # fmt: skip
+        return _Call(
+            st=st,
+            schedule=(float(tau_end), lam0, lam1, dw0, dw1),
+            span=span,
+            rate=rate,
+            options=options,
+            recording=_Recording(rec_idx, rec_dt, float(rec_next), rec_buf[first:]),
+            rec_buf=rec_buf,
+            first=first,
+            stats=np.zeros(9, dtype=np.int64),
+            ext=_EXTREMES_START.copy(),
+            forcing=forcing,
+            max_steps=max_steps,
+        )
+
+    def _finish(
+        self,
+        call: _Call,
+        code: int,
+        clock: tuple[float, float, float, float, int],
+        counts: list[int],
+        ext: list[float],
+        rec_buf: np.ndarray,
+        raise_on_failure: bool,
+    ) -> AdvanceResult:
+        """The integrator's new state and the call's result from the compiled loop's outputs: its status
+        code, clock, counters and extremes (as lists) and its sample buffer (``call.rec_buf`` or the
+        batch's copy of it)."""
+        st = call.st
+        t0, lam0, lam1, dw0, dw1 = st.tau, *call.schedule[1:]
+        span = call.span
         t = float(clock[0])
         theta = (t - t0) / span if span > 0 else 1.0
         lam_t = lam0 + (lam1 - lam0) * theta
         dw_t = dw0 + (dw1 - dw0) * theta
-        nrec = first + int(stats[_NREC])
+        nrec = call.first + counts[_NREC]
         rb = rec_buf[:nrec]
         # theta' = Lambda is linear in time over the call: theta advances by the exact trapezoid
         angle = st.rotation_angle + (t - t0) * 0.5 * (lam0 + lam_t)
-        self._stepper = dataclasses.replace(
-            st.with_clock(clock),
+        self._stepper = new = st.advanced(
+            clock,
             bearing_number=lam_t,
             foil_damping=dw_t,
-            statistics=st.statistics + IntegratorStatistics.from_array(stats),
+            counts=counts,
             last_record_tau=float(rb[-1, 0]) if nrec else st.last_record_tau,
             rotation_angle=math.fmod(angle, 2.0 * math.pi) if span > 0 else st.rotation_angle,
-            rotation_acceleration=rate,
-            shocks=tuple(q for q in st.shocks if q.end_tau > t),
+            rotation_acceleration=call.rate,
+            shocks=tuple(q for q in st.shocks if q.end_tau > t) if st.shocks else (),
         )
-        tau_s = rb[:, 0]
+        # one copy of the samples, column by column (each column contiguous; the probes a view of it)
+        cols = rb.T.copy()
+        tau_s = cols[0]
         th = (tau_s - t0) / span if span > 0 else np.ones_like(tau_s)
         traj = Trajectory(
-            tau=tau_s.copy(),
-            xi=rb[:, 1].copy(),
-            eta=rb[:, 2].copy(),
-            xi_dot=rb[:, 3].copy(),
-            eta_dot=rb[:, 4].copy(),
-            min_film_thickness=rb[:, -1].copy(),
-            probes=rb[:, 5:-1].copy(),
+            tau=tau_s,
+            xi=cols[1],
+            eta=cols[2],
+            xi_dot=cols[3],
+            eta_dot=cols[4],
+            min_film_thickness=cols[-1],
+            probes=cols[5:-1].T,
             bearing_number=lam0 + (lam1 - lam0) * th,
             foil_damping=dw0 + (dw1 - dw0) * th,
         )
-        status = _STATUS_OF_CODE[code]
         event = None
         if code == _TOUCHDOWN:
-            event = TouchdownEvent(
-                float(ext[_EVT]), float(ext[_EVXI]), float(ext[_EVETA]), self.touchdown_film_thickness
-            )
+            event = TouchdownEvent(ext[_EVT], ext[_EVXI], ext[_EVETA], self.touchdown_film_thickness)
         msg = ""
         if code == _FAILED:
             msg = (
@@ -1202,26 +1415,295 @@ class TrapezoidalIntegrator:
                 f"(Lambda={lam_t:.4g}, D_W={dw_t:.4g}); the state is the last accepted one"
             )
         elif code == _MAX_STEPS:
-            msg = f"max_steps={max_steps} reached at tau={t:.6g}"
-        if not math.isfinite(ext[_MINH]):
-            ext[_MINH] = self.model.min_film_thickness(self._stepper.s)
+            msg = f"max_steps={call.max_steps} reached at tau={t:.6g}"
+        min_h = ext[_MINH]
+        if not math.isfinite(min_h):
+            min_h = self.model.min_film_thickness(new.s)
         res = AdvanceResult(
-            status=status,
+            status=_STATUS_OF_CODE[code],
             tau=t,
             trajectory=traj,
             touchdown=event,
-            steps=int(stats[_NSTEPS]),
-            rejected_steps=int(stats[_NREJ_ERR]),
-            newton_failures=int(stats[_NREJ_NEWTON]),
-            jacobians=int(stats[_NJAC]),
-            factorizations=int(stats[_NFACT]),
-            rhs_evaluations=int(stats[_NRHS]),
-            min_film_thickness=float(ext[_MINH]),
-            xi_range=(float(ext[_XIMIN]), float(ext[_XIMAX])),
-            eta_range=(float(ext[_ETAMIN]), float(ext[_ETAMAX])),
-            max_eccentricity=float(ext[_EPSMAX]),
+            steps=counts[_NSTEPS],
+            rejected_steps=counts[_NREJ_ERR],
+            newton_failures=counts[_NREJ_NEWTON],
+            jacobians=counts[_NJAC],
+            factorizations=counts[_NFACT],
+            rhs_evaluations=counts[_NRHS],
+            min_film_thickness=float(min_h),
+            xi_range=(ext[_XIMIN], ext[_XIMAX]),
+            eta_range=(ext[_ETAMIN], ext[_ETAMAX]),
+            max_eccentricity=ext[_EPSMAX],
             message=msg,
         )
         if raise_on_failure and code in (_FAILED, _MAX_STEPS):
             raise IntegrationError(msg)
         return res
+
+
+# ------------------------------------------------------------------------------------------------
+#: (compiled function, key) -> the entry point of its compiled variant for the argument types of that key
+_ENTRY_POINTS: dict[tuple, Any] = {}
+
+
+def _call_compiled(dispatcher: Any, key: tuple, *args: Any) -> Any:
+    """``dispatcher(*args)``, the types of whose arguments ``key`` determines.  The first call of a key
+    goes through numba's dispatcher (it compiles or loads the variant); later ones call that variant's
+    entry point directly.  The dispatcher types every argument of every call, and the factorisation's
+    ``size_tag`` tuple alone cost ~12 us of the ~22 us it spent on one control step's call (CPU time):
+    the arguments' types here are fixed by the key (the block size and whether a forcing is passed
+    for :func:`_advance`; the workspace's static part for :func:`_advance_batch`), the call is the same
+    compiled code."""
+    entry = _ENTRY_POINTS.get((dispatcher, key))
+    if entry is not None:
+        return entry(*args)
+    result = dispatcher(*args)
+    try:
+        types = tuple(dispatcher.typeof_pyval(a) for a in args)
+        _ENTRY_POINTS[(dispatcher, key)] = dispatcher.overloads[types].entry_point
+    except (KeyError, AttributeError):  # pragma: no cover - numba without these internals: the dispatcher
+        pass
+    return result
+
+
+def _choose_threading_layer() -> None:
+    """numba's ``workqueue`` threading layer for the batch unless the user chose one
+    (``NUMBA_THREADING_LAYER``) or numba already started one.  Measured on the shared 2-core machine
+    (load ~4): with 2 threads GNU OpenMP's ``omp`` layer made a batch call 5x slower than 1 thread
+    (its workers spin while the cores are busy), ``workqueue`` was as fast as 1 thread; ``workqueue``
+    is also fork-safe (GNU OpenMP is not: a forked worker that launched threads would hang).  It is
+    not thread-safe: do not step two batches from two Python threads at once."""
+    if os.environ.get("NUMBA_THREADING_LAYER") is None and numba.config.THREADING_LAYER == "default":
+        from numba.np.ufunc import parallel
+
+        if not getattr(parallel, "_is_initialized", True):  # (numba internals: when unknown, leave it)
+            numba.config.THREADING_LAYER = "workqueue"
+
+
+class _BatchWorkspace:
+    """The stacked arrays of :func:`_advance_batch` for up to ``capacity`` envs of one model shape."""
+
+    def __init__(self, capacity: int, model: GFBModel, n_recorded: int):
+        N, n = capacity, model.layout.size
+        nc, m = model.grid.n_columns, model.layout.block_size
+        nb = m + 4
+        z = np.zeros
+        self.shape_key = _shape_key(model)
+        self.capacity, self.n_recorded = capacity, n_recorded
+        self.Y = z((N, 5, n))
+        self.clocks, self.history, self.schedules = z((N, 4)), z(N, np.int64), z((N, 5))
+        self.IP, self.FP, self.SN, self.CS = z((N, 3), np.int64), z((N, 4)), z((N, nc)), z((N, nc))
+        self.kargs_of_slot: list[tuple | None] = [None] * N  # whose kernel args each row holds
+        self.jac = (z((N, nc, m, m)), z((N, nc, m, m)), z((N, nc, m, m)), z((N, nc, m, 4)))
+        self.jac += (z((N, nc, 4, m)), z((N, 4, 4)))
+        self.lu = (z((N, nc, m, m)), z((N, nc, m), np.int64), z((N, nc, m, m)), z((N, nc, m, nb)))
+        self.lu += (z((N, nb, nb)), z((N, nb), np.int64))
+        self.lu_static = (model.grid.n_rows, model.sparse_offdiagonal_blocks, K.size_tag(m))
+        self.opt_f, self.opt_i = z((N, 7)), z((N, 3), np.int64)
+        self.rec_t, self.rec_rows = z((N, 2)), z((N, 2), np.int64)
+        self.rec_bufs = np.empty((N, 0, n_recorded + 2))
+        self.stats, self.ext = z((N, 9), np.int64), z((N, 9))
+        self.forced, self.force_f = z(N, np.bool_), z((N, 3))
+        self.shocks, self.n_shocks = z((N, 0, 4)), z(N, np.int64)
+        self.codes = z(N, np.int64)
+
+    def fits(self, n_envs: int, model: GFBModel, n_recorded: int) -> bool:
+        return (
+            n_envs <= self.capacity and _shape_key(model) == self.shape_key and n_recorded == self.n_recorded
+        )
+
+    def reserve(self, rows: int, shocks: int) -> None:
+        """At least ``rows`` sample rows and ``shocks`` shock rows per env."""
+        N = self.capacity
+        if self.rec_bufs.shape[1] < rows:
+            self.rec_bufs = np.empty((N, rows, self.rec_bufs.shape[2]))
+        if self.shocks.shape[1] < shocks:
+            self.shocks = np.zeros((N, shocks, 4))
+
+
+def _shape_key(model: GFBModel) -> tuple:
+    """What the stacked arrays' shapes and the solver's static arguments depend on."""
+    g = model.grid
+    return (
+        model.layout.size,
+        g.n_columns,
+        g.n_rows,
+        model.layout.block_size,
+        model.sparse_offdiagonal_blocks,
+    )
+
+
+class BatchAdvance:
+    """Advance many :class:`TrapezoidalIntegrator` objects with one compiled, parallel call.
+
+    :meth:`advance` runs, for each integrator, exactly what its :meth:`TrapezoidalIntegrator.advance`
+    runs: the same Python preparation and finish, and the same compiled loop (:func:`_advance`, called
+    by :func:`_advance_batch` in a numba ``prange`` over the integrators), so every result and state is
+    bit for bit the one-by-one result, for any thread count.  Integrators may have different models of
+    one grid (e.g. randomised bearings), be forced (unbalance, shocks) or not; a failure (status
+    ``"failed"``/``"max_steps"``) is that integrator's only.  Integrators of different grids, or calls
+    with different recorded entries, are advanced one after the other (same results).
+
+    Args:
+        num_threads: numba threads of the call (``numba.set_num_threads``; at most
+            ``numba.config.NUMBA_NUM_THREADS``, the cores numba sees, which is the default).  The
+            environment variable ``NUMBA_NUM_THREADS`` caps it for the process.
+    """
+
+    def __init__(self, num_threads: int | None = None):
+        self.num_threads = num_threads
+        self._ws: _BatchWorkspace | None = None
+
+    @property
+    def num_threads(self) -> int:
+        return self._num_threads
+
+    @num_threads.setter
+    def num_threads(self, value: int | None) -> None:
+        limit = numba.config.NUMBA_NUM_THREADS
+        if value is None:
+            value = limit
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 1 <= value <= limit:
+            raise ValueError(
+                f"num_threads must be an integer in [1, {limit}] (NUMBA_NUM_THREADS), got {value!r}"
+            )
+        self._num_threads = int(value)
+
+    def advance(
+        self,
+        integrators: list[TrapezoidalIntegrator],
+        tau_end: list[float],
+        bearing_number: list[float | None],
+        foil_damping: list[float | None],
+        record_interval: float | None = None,
+        record_indices: np.ndarray | None = None,
+        max_steps: int = DEFAULT_MAX_STEPS,
+        raise_on_failure: bool = True,
+    ) -> list[AdvanceResult]:
+        """:meth:`TrapezoidalIntegrator.advance` of every integrator (``tau_end``, ``bearing_number``,
+        ``foil_damping``: one per integrator; the recording and ``max_steps`` are shared).  Bad
+        arguments raise as one call after the other would (the integrators before the bad one are
+        advanced).  With ``raise_on_failure`` an :class:`IntegrationError` is raised after all are
+        advanced, for the first one that failed."""
+        integs = list(integrators)
+        n = len(integs)
+        if len({id(x) for x in integs}) != n:
+            raise ValueError("integrators: each integrator may appear only once")
+        for name, v in (
+            ("tau_end", tau_end),
+            ("bearing_number", bearing_number),
+            ("foil_damping", foil_damping),
+        ):
+            if len(v) != n:
+                raise ValueError(f"{name}: {len(v)} values for {n} integrators")
+        calls: list[_Call] = []
+        try:
+            for k, integ in enumerate(integs):
+                calls.append(
+                    integ._prepare(
+                        tau_end[k],
+                        bearing_number[k],
+                        foil_damping[k],
+                        record_interval,
+                        record_indices,
+                        max_steps,
+                    )
+                )
+        except Exception:
+            self.run_prepared(integs[: len(calls)], calls)  # those before the bad one, as one by one
+            raise
+        results = self.run_prepared(integs, calls)
+        if raise_on_failure:
+            for r in results:
+                if r.status in (IntegrationStatus.FAILED, IntegrationStatus.MAX_STEPS):
+                    raise IntegrationError(r.message)
+        return results
+
+    def run_prepared(self, integs: list[TrapezoidalIntegrator], calls: list[_Call]) -> list[AdvanceResult]:
+        """The compiled part and the finish of calls prepared by ``integs[k]._prepare(...)`` (each
+        integrator once; used by the vector env, which prepares each env's call itself)."""
+        n = len(calls)
+        _choose_threading_layer()
+        if n == 0:
+            return []
+        model0 = integs[0].model
+        key = integs[0]._shape_key
+        rec_key = integs[0]._record_key
+        rec_idx = calls[0].recording.indices
+        if any(it._shape_key != key or it._record_key != rec_key for it in integs):
+            return [self._one(it, c) for it, c in zip(integs, calls, strict=True)]
+        ws = self._ws
+        if ws is None or not ws.fits(n, model0, len(rec_idx)):
+            ws = self._ws = _BatchWorkspace(
+                max(n, ws.capacity if ws is not None else 0), model0, len(rec_idx)
+            )
+        ws.reserve(max(c.rec_buf.shape[0] for c in calls), max(len(c.st.shocks) for c in calls))
+        sts = [c.st for c in calls]
+        Y = ws.Y
+        for k, st in enumerate(sts):
+            Yk = Y[k]
+            Yk[0], Yk[1], Yk[2], Yk[3], Yk[4] = st.s, st.f, st.fprev, st.sprev, st.sprev2
+        ws.clocks[:n] = [(s.tau, s.step, s.previous_step, s.previous_step2) for s in sts]
+        ws.history[:n] = [s.history for s in sts]
+        ws.schedules[:n] = [c.schedule for c in calls]
+        ws.opt_f[:n] = [(o[0], o[1], o[2], o[3], o[4], o[7], o[8]) for o in (c.options for c in calls)]
+        ws.opt_i[:n] = [(o[5], o[6], o[9]) for o in (c.options for c in calls)]
+        ws.rec_t[:n] = [(c.recording.interval, c.recording.first_tau) for c in calls]
+        ws.rec_rows[:n] = [(c.first, c.rec_buf.shape[0]) for c in calls]
+        ws.stats[:n] = 0
+        ws.ext[:n] = _EXTREMES_START
+        for k, (it, c) in enumerate(zip(integs, calls, strict=True)):
+            if ws.kargs_of_slot[k] is not it._kernel_args:
+                ws.IP[k], ws.FP[k], ws.SN[k], ws.CS[k] = it._kernel_args
+                ws.kargs_of_slot[k] = it._kernel_args
+            if c.first:
+                ws.rec_bufs[k, 0] = c.rec_buf[0]
+            f = c.forcing
+            ws.forced[k] = f is not None
+            if f is not None:
+                ws.force_f[k] = (f.unbalance, f.angle, f.max_step)
+                ws.n_shocks[k] = len(f.shocks)
+                ws.shocks[k, : len(f.shocks)] = f.shocks
+        args = (
+            ws.Y[:n], ws.clocks[:n], ws.history[:n], ws.schedules[:n], ws.IP[:n], ws.FP[:n], ws.SN[:n],
+            ws.CS[:n], *(a[:n] for a in ws.jac), *(a[:n] for a in ws.lu), ws.lu_static, ws.opt_f[:n],
+            ws.opt_i[:n], rec_idx, ws.rec_t[:n], ws.rec_bufs[:n], ws.rec_rows[:n], ws.stats[:n], ws.ext[:n],
+            ws.forced[:n], ws.force_f[:n], ws.shocks[:n], ws.n_shocks[:n], ws.codes[:n],
+        )  # fmt: skip
+        threads = min(self._num_threads, n)
+        if threads == 1:
+            self._launch(_advance_batch_serial, (ws.lu_static, len(rec_idx)), *args)
+        else:
+            old_threads = numba.get_num_threads()
+            numba.set_num_threads(threads)
+            # many envs of unequal cost: one at a time to each thread (dynamic scheduling costs ~30 us
+            # more per launch, measured; with a few envs per thread the static split is cheaper)
+            old_chunk = numba.set_parallel_chunksize(1 if n > 4 * threads else 0)
+            try:
+                self._launch(_advance_batch, (ws.lu_static, len(rec_idx)), *args)
+            finally:
+                numba.set_parallel_chunksize(old_chunk)
+                numba.set_num_threads(old_threads)
+        clocks, history, codes = ws.clocks[:n].tolist(), ws.history[:n].tolist(), ws.codes[:n].tolist()
+        counts, exts = ws.stats[:n].tolist(), ws.ext[:n].tolist()
+        out = []
+        for k, (it, c) in enumerate(zip(integs, calls, strict=True)):
+            st, Yk = c.st, Y[k]
+            st.s[:], st.f[:], st.fprev[:], st.sprev[:], st.sprev2[:] = Yk
+            rec_buf = ws.rec_bufs[k, : c.rec_buf.shape[0]]
+            out.append(it._finish(c, codes[k], (*clocks[k], history[k]), counts[k], exts[k], rec_buf, False))
+        return out
+
+    @staticmethod
+    def _launch(kernel: Any, key: tuple, *args: Any) -> None:
+        """The compiled batch call (a method: ``bench_env`` times it)."""
+        _call_compiled(kernel, key, *args)
+
+    @staticmethod
+    def _one(it: TrapezoidalIntegrator, c: _Call) -> AdvanceResult:
+        code, clock = _call_compiled(
+            _advance, (it._factorization.size_tag, c.forcing is None),
+            c.st.arrays, c.st.clock, c.schedule, it._kernel_args, it._jacobian, it._factorization,
+            c.options, c.recording, c.stats, c.ext, c.forcing,
+        )  # fmt: skip
+        return it._finish(c, code, clock, c.stats.tolist(), c.ext.tolist(), c.rec_buf, False)

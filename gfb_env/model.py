@@ -478,7 +478,7 @@ class GFBModel:
     def bearing_force(self, s: np.ndarray) -> np.ndarray:
         """Nondimensional bearing force ``[f_xi, f_eta]`` of Eq. (11)."""
         P = self.layout.pressure(self.layout.check(s))
-        w = (P - 1.0).sum(axis=1) * self.grid.dphi * self.grid.dz
+        w = np.add.reduce(P - 1.0, axis=1) * self.grid.dphi * self.grid.dz  # = .sum(axis=1), less Python
         kp = self.kernel_parameters
         return np.array([w @ kp.sin_phi, w @ kp.cos_phi])
 

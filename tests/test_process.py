@@ -9,6 +9,8 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
 from gfb_env._threads import THREAD_VARIABLES
 
 
@@ -86,3 +88,35 @@ def test_importable_env_id():
     assert importable_env_id("gfb_env/RunUp-v0") == "gfb_env:gfb_env/RunUp-v0"
     assert importable_env_id("gfb_env:gfb_env/RunUp-v0") == "gfb_env:gfb_env/RunUp-v0"
     assert importable_env_id("CartPole-v1") == "CartPole-v1"
+
+
+@pytest.mark.slow
+def test_native_vector_env_compiles_from_a_cold_cache_and_then_loads_it(tmp_path):
+    """numba's parallel batch integrator with cache=True: compiled in a fresh cache folder (the
+    workqueue threading layer, every core numba sees), loaded from it by the next process, the same
+    observations both times (~1 min: every kernel compiles once)."""
+    code = textwrap.dedent(
+        """
+        import json
+        import numba
+        import numpy as np
+        import gymnasium as gym
+        import gfb_env.envs
+        import gfb_env.integrator as I
+
+        envs = gym.make_vec("gfb_env/RunUp-v0", num_envs=4, control_interval=20.0)
+        obs, _ = envs.reset(seed=0)
+        for _ in range(2):
+            obs, *_ = envs.step(np.full((4, 2), 0.3, np.float32))
+        print(json.dumps({"obs": obs.astype(float).tolist(), "layer": numba.threading_layer(),
+                          "hits": sum(I._advance_batch.stats.cache_hits.values())}))
+        """
+    )
+    env = {**_clean_env(), "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    runs = []
+    for _ in range(2):
+        out = _run(code, tmp_path, env=env, timeout=600)
+        assert out.returncode == 0, out.stderr[-3000:]
+        runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+    assert runs[0]["hits"] == 0 and runs[1]["hits"] == 1
+    assert runs[0]["obs"] == runs[1]["obs"] and runs[0]["layer"] == "workqueue"

@@ -147,8 +147,9 @@ def test_a_solver_failure_in_one_env_is_handled_like_the_single_env(env_id, monk
     def fail(*a, **k):
         raise IntegrationError("step size fell below min_step")
 
-    monkeypatch.setattr(native.envs[1]._integ, "advance", fail)
-    monkeypatch.setattr(sync.envs[1].unwrapped._integ, "advance", fail)
+    # both the single env's advance and the batch prepare each call with _prepare
+    monkeypatch.setattr(native.envs[1]._integ, "_prepare", fail)
+    monkeypatch.setattr(sync.envs[1].unwrapped._integ, "_prepare", fail)
     a = np.full((N, 2), 0.5, np.float32)
     res = native.step(a)
     _assert_same(res, sync.step(a))
@@ -168,9 +169,26 @@ def test_a_programming_error_in_the_plant_propagates(monkeypatch):
     def bug(*a, **k):
         raise TypeError("a programming error")
 
-    monkeypatch.setattr(native.envs[0]._integ, "advance", bug)
+    monkeypatch.setattr(native.envs[0]._integ, "_prepare", bug)
     with pytest.raises(TypeError, match="programming error"):
         native.step(np.zeros((2, 2), np.float32))
+
+
+def test_a_failure_inside_the_compiled_batch_is_that_envs_only():
+    """Env 1's compiled loop fails (no Newton iteration allowed: the step falls below min_step) in the
+    same parallel call as the others; it ends with a solver failure, bit for bit as the single env."""
+    native, sync = _pair("gfb_env/RunUp-v0", max_episode_steps=10)
+    _assert_same(native.reset(seed=4), sync.reset(seed=4))
+    for integ in (native.envs[1]._integ, sync.envs[1].unwrapped._integ):
+        integ.max_newton_iterations = 0
+    a = np.full((N, 2), 0.5, np.float32)
+    res = native.step(a)
+    _assert_same(res, sync.step(a))
+    assert list(res[2]) == [False, True, False]
+    assert res[4]["termination_reason"][1] is TerminationReason.SOLVER_FAILURE
+    assert np.all(np.isfinite(res[0]))
+    res = native.step(a)  # env 1 autoreset (its integrator kept: it fails again later)
+    _assert_same(res, sync.step(a))
 
 
 @pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v0", "gfb_env/RunUpRandomized-v1"])
@@ -231,3 +249,23 @@ def test_sync_vector_env_is_the_reference():
     # the reference of the comparisons is Gymnasium's own SyncVectorEnv, not the native env again
     _, sync = _pair("gfb_env/RunUp-v0")
     assert type(sync) is SyncVectorEnv
+
+
+def test_the_thread_count_of_the_native_env():
+    """``num_threads`` (the compiled plant stage's threads) changes no bit; bad values are refused."""
+    import numba
+
+    top = numba.config.NUMBA_NUM_THREADS
+    one = gym.make_vec("gfb_env/RunUp-v1", num_envs=N, num_threads=1, **_kwargs("gfb_env/RunUp-v1"))
+    many = gym.make_vec("gfb_env/RunUp-v1", num_envs=N, **_kwargs("gfb_env/RunUp-v1"))
+    assert one.num_threads == 1 and many.num_threads == top
+    rng = np.random.default_rng(2)
+    _assert_same(one.reset(seed=1), many.reset(seed=1))
+    for _ in range(4):
+        a = _actions(rng)
+        _assert_same(one.step(a), many.step(a))
+    many.num_threads = 1
+    assert many.num_threads == 1
+    for bad in (0, top + 1, 2.0):
+        with pytest.raises(ValueError, match="num_threads"):
+            gym.make_vec("gfb_env/RunUp-v0", num_envs=1, num_threads=bad)

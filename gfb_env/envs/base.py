@@ -637,16 +637,25 @@ def _whirl_amplitude(tau: np.ndarray, xi: np.ndarray, eta: np.ndarray) -> float:
     """Largest distance of the journal from its linear trend over the control interval (units of C).
 
     The trend is the slow drift of the equilibrium while the speed ramps; what is left is the
-    vibration (the whirl).  NaN if fewer than 3 samples."""
-    if len(tau) < 3:
+    vibration (the whirl).  NaN if fewer than 3 samples.
+
+    The means are ``np.add.reduce(x) / n``, what ``x.mean()`` computes (the same pairwise sum and
+    division) without its Python layer, and the largest distance is the root of the largest square
+    (the correctly rounded root is monotonic): bit for bit the earlier result at a third of the cost."""
+    n = len(tau)
+    if n < 3:
         return float("nan")
-    t = tau - tau.mean()
+    add = np.add.reduce
+    t = tau - add(tau) / n
     denom = float(t @ t)
     if denom <= 0:
         return float("nan")
-    xd = xi - xi.mean() - t * (float(t @ xi) / denom)
-    ed = eta - eta.mean() - t * (float(t @ eta) / denom)
-    return float(np.sqrt(xd * xd + ed * ed).max())
+    xd = xi - add(xi) / n - t * (float(t @ xi) / denom)
+    ed = eta - add(eta) / n - t * (float(t @ eta) / denom)
+    xd *= xd
+    ed *= ed
+    xd += ed
+    return math.sqrt(float(np.maximum.reduce(xd)))
 
 
 def viscoelastic_model(

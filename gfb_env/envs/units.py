@@ -83,7 +83,8 @@ class ActionMap:
     def action_from_damping(self, d: float) -> float:
         """Inverse of :meth:`damping_from_action`, clipped to ``[-1, 1]``."""
         dmin, dmax = self.damping_range
-        return float(np.clip(2.0 * math.log(d / dmin) / math.log(dmax / dmin) - 1.0, -1.0, 1.0))
+        # min/max of np.clip's order (NaN passes), without np.clip's ~4 us on a scalar
+        return float(min(max(2.0 * math.log(d / dmin) / math.log(dmax / dmin) - 1.0, -1.0), 1.0))
 
     def max_rate(self, bearing: BearingParameters) -> float:
         """The motor limit as ``dLambda/dtau`` of ``bearing`` (depends on its time scale T)."""

@@ -9,8 +9,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from gfb_env.machine._checks import positive
 from gfb_env.params import BearingParameters
 
@@ -52,6 +50,7 @@ class Motor:
         ``bearing_number`` with the speed action ``a_speed``, clipped into ``limits`` (Lambda at the
         ends of the speed range).  The arithmetic is v0's, operation for operation."""
         lam_lo, lam_hi = limits
+        # np.clip's min(max(x, lo), hi) in plain Python (a NaN passes as there; ~4 us less per step)
         return float(
-            np.clip(bearing_number + a_speed * self.max_rate(bearing) * control_interval, lam_lo, lam_hi)
+            min(max(bearing_number + a_speed * self.max_rate(bearing) * control_interval, lam_lo), lam_hi)
         )

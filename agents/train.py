@@ -152,21 +152,21 @@ def make_vec_env_for(
     seed: int,
     monitor_dir: str | Path | None = None,
     env_kwargs: dict | None = None,
-    vec_env: str = "dummy",
+    vec_env: str = "native",
 ):
     """A vector env of ``n_envs`` Monitor-wrapped copies of ``env_id`` seeded ``seed, seed+1, ...``.
 
-    ``vec_env="dummy"`` (default): SB3's ``DummyVecEnv``, all copies in this process (the control step is
+    ``vec_env="dummy"``: SB3's ``DummyVecEnv``, all copies in this process (the control step is
     a stiff integration in compiled code and the cores are few and shared; set ``n_envs`` to 1 or 2).
     ``vec_env="subproc"``: ``SubprocVecEnv``, one worker process per copy.  The workers get the id in the
     ``"module:id"`` form (:func:`importable_env_id`), so this works from ``python -c`` and stdin too, and
     one copy is made, reset and stepped here first so that numba compiles (or loads) the kernels once and
     writes its on-disk cache before the workers start: they load the kernels instead of compiling them
     all at once.
-    ``vec_env="native"``: the task's native vector env (``gymnasium.make_vec``'s vector_entry_point,
-    :class:`gfb_env.envs.vector.GFBVectorEnv`) behind SB3's API (:class:`gfb_agents.vec_env.GFBSB3VecEnv`),
-    the same bits as ``"dummy"``, with one ``VecMonitor`` (``native.monitor.csv``) instead of one
-    ``Monitor`` per copy."""
+    ``vec_env="native"`` (default, issue 13): the task's native vector env (``gymnasium.make_vec``'s
+    vector_entry_point, :class:`gfb_env.envs.vector.GFBVectorEnv`) behind SB3's API
+    (:class:`gfb_agents.vec_env.GFBSB3VecEnv`), the same bits as ``"dummy"``, with one ``VecMonitor``
+    (``native.monitor.csv``) instead of one ``Monitor`` per copy."""
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
@@ -179,6 +179,10 @@ def make_vec_env_for(
         from gfb_agents.vec_env import GFBSB3VecEnv
 
         native = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point", **env_kwargs)
+        # one thread for the compiled plant stage: training runs go in parallel over the seeds (one per
+        # core) and the learner's update shares the core; with a busy second core two threads were
+        # slower than one (docs/envs.md, bench_env).  The results do not depend on it.
+        native.unwrapped.num_threads = 1
         venv = VecMonitor(
             GFBSB3VecEnv(native.unwrapped),
             filename=str(Path(monitor_dir) / "native") if monitor_dir else None,
@@ -396,7 +400,8 @@ class TrainConfig:
             PPO / SAC.
         progress_bar, tensorboard, verbose: output.
         torch_threads: torch CPU threads (1: the env is the bottleneck and cores are shared).
-        vec_env: ``"dummy"``, ``"subproc"`` or ``"native"`` for the training envs (:func:`make_vec_env_for`).
+        vec_env: ``"native"`` (default), ``"dummy"`` or ``"subproc"`` for the training envs
+            (:func:`make_vec_env_for`).
     """
 
     algo: str
@@ -416,7 +421,7 @@ class TrainConfig:
     tensorboard: bool = True
     verbose: int = 0
     torch_threads: int = 1
-    vec_env: str = "dummy"
+    vec_env: str = "native"
 
     def __post_init__(self) -> None:
         algo = str(self.algo).lower()
@@ -785,7 +790,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--vec-env",
         choices=VEC_ENVS,
-        default="dummy",
+        default="native",
         help="training envs in this process (dummy), one worker process each (subproc), or the task's "
         "native vector env (native)",
     )

@@ -5,10 +5,12 @@ Importing this package registers (idempotently):
 * ``gfb_env/RunUp-v0`` (:class:`~gfb_env.envs.run_up.RunUpEnv`, ``max_episode_steps=200``)
 * ``gfb_env/RunUpRandomized-v0`` (:class:`~gfb_env.envs.run_up_randomized.RunUpRandomizedEnv`, 250)
 * ``gfb_env/WhirlRecovery-v0`` (:class:`~gfb_env.envs.whirl_recovery.WhirlRecoveryEnv`, 200)
-* ``gfb_env/RunUp-v1``, ``gfb_env/RunUpRandomized-v1``, ``gfb_env/WhirlRecovery-v1``: the same tasks on
-  the instrumented machine (:data:`MACHINE_V1`: actuator lag and rate limit, noisy biased probes and
-  taps, random base shocks instead of the velocity kick, a residual unbalance; ``docs/machine.md``).
-  The v0 ids stay bit-for-bit reproducible.
+* ``gfb_env/RunUp-v1`` (250), ``gfb_env/RunUpRandomized-v1`` (250), ``gfb_env/WhirlRecovery-v1`` (200):
+  the commanded-speed tasks (:data:`V1_TASK`, :mod:`gfb_env.envs.commanded`: an observed speed
+  command, a fixed horizon, a stability certificate at the end, costs) on the instrumented machine
+  (:data:`MACHINE_V1`: actuator lag and rate limit, noisy biased probes and taps, random base shocks
+  instead of the velocity kick, a residual unbalance; ``docs/machine.md``) with a hidden damping
+  effectiveness (:data:`V1_DAMPING_GAIN_RANGE`).  The v0 ids stay bit-for-bit reproducible.
 
 Every id has a native vector env (:class:`~gfb_env.envs.vector.GFBVectorEnv`, registered as its
 ``vector_entry_point``): ``gymnasium.make_vec(id, num_envs=N)`` returns it, bit for bit the same as
@@ -44,6 +46,8 @@ __all__ = [
     "ENV_IDS",
     "V0_IDS",
     "MACHINE_V1",
+    "V1_TASK",
+    "V1_DAMPING_GAIN_RANGE",
 ]
 
 #: The instrumented machine of the v1 tasks (defaults and their reasons in ``docs/machine.md``).
@@ -56,20 +60,27 @@ MACHINE_V1: dict = {
     "disturbance_probability": 0.0,  # physical shocks replace the legacy velocity kick
 }
 
+#: The hidden damping effectiveness of every v1 task: actual D_W = g x commanded, g log-uniform in
+#: [10^-0.5, 10^0.5] = [0.316, 3.16] (paper Eq. 15: D_W is known only to an order of magnitude).
+#: The nominal optimum D_opt = 2.26 needs the command D_opt / g in [0.71, 7.1], inside [0.1, 10].
+V1_DAMPING_GAIN_RANGE = (10.0**-0.5, 10.0**0.5)
+
+#: The keyword arguments of the v1 ids: the instrumented machine with the hidden damping gain and the
+#: commanded-speed objective (:mod:`gfb_env.envs.commanded`; horizons 250 / 250 / 200 control steps).
+V1_TASK: dict = {
+    **MACHINE_V1,
+    "damping_actuator": FoilDampingActuator(gain_range=V1_DAMPING_GAIN_RANGE),
+    "task_version": 1,
+}
+
 #: registered ids -> (entry point, max_episode_steps, default keyword arguments)
 _SPECS = {
     "gfb_env/RunUp-v0": ("gfb_env.envs.run_up:RunUpEnv", 200, {}),
     "gfb_env/RunUpRandomized-v0": ("gfb_env.envs.run_up_randomized:RunUpRandomizedEnv", 250, {}),
     "gfb_env/WhirlRecovery-v0": ("gfb_env.envs.whirl_recovery:WhirlRecoveryEnv", 200, {}),
-    "gfb_env/RunUp-v1": ("gfb_env.envs.run_up:RunUpEnv", 200, MACHINE_V1),
-    # the damping's effectiveness is one more hidden parameter of the drawn bearing (paper Eq. 15:
-    # D_W is known only to an order of magnitude)
-    "gfb_env/RunUpRandomized-v1": (
-        "gfb_env.envs.run_up_randomized:RunUpRandomizedEnv",
-        250,
-        {**MACHINE_V1, "damping_actuator": FoilDampingActuator(gain_range=(0.5, 2.0))},
-    ),
-    "gfb_env/WhirlRecovery-v1": ("gfb_env.envs.whirl_recovery:WhirlRecoveryEnv", 200, MACHINE_V1),
+    "gfb_env/RunUp-v1": ("gfb_env.envs.run_up:RunUpEnv", 250, V1_TASK),
+    "gfb_env/RunUpRandomized-v1": ("gfb_env.envs.run_up_randomized:RunUpRandomizedEnv", 250, V1_TASK),
+    "gfb_env/WhirlRecovery-v1": ("gfb_env.envs.whirl_recovery:WhirlRecoveryEnv", 200, V1_TASK),
 }
 #: the native vector env of each task (``gymnasium.make_vec(id, num_envs=N)``; :mod:`gfb_env.envs.vector`)
 _VECTOR_ENTRY_POINTS = {

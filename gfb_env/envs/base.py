@@ -125,6 +125,7 @@ class GFBEnv(gym.Env):
             max_speed_rpm=cfg.speed_range_rpm[1],
             extra_low=tuple(float(x) for x in extra[0]) if extra is not None else (),
             extra_high=tuple(float(x) for x in extra[1]) if extra is not None else (),
+            extra_names=self._extra_observation_names(),
         )
         # record the trajectory ~120 times per control step (>= 30 samples per whirl period)
         self.record_interval = cfg.control_interval / 120.0
@@ -171,9 +172,24 @@ class GFBEnv(gym.Env):
         """Whether the speed counts for a success (default: any speed)."""
         return True
 
+    def _step_success(self, out: StepOutcome, stable: bool) -> bool:
+        """Whether this step completes a success (``stable``: no touchdown, no failure, small whirl).
+        Default (v0): ``hold_steps`` consecutive stable steps at the target."""
+        ep = self._ep
+        ep.hold = ep.hold + 1 if (stable and self._is_at_target(out)) else 0
+        return ep.hold >= self.hold_steps
+
+    def _horizon_reached(self) -> bool:
+        """Whether a fixed-horizon task ends after this step (default: no horizon; a TimeLimit truncates)."""
+        return False
+
     def _extra_observation_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Bounds of task-specific observations appended after the probes (None: none)."""
         return None
+
+    def _extra_observation_names(self) -> tuple[str, ...]:
+        """Names of the task-specific observations (empty: ``extra_0``, ``extra_1``, ...)."""
+        return ()
 
     def _extra_observation(self) -> np.ndarray | None:
         return None
@@ -268,6 +284,7 @@ class GFBEnv(gym.Env):
             probe_bias_um=probe_bias,
             tap_bias_kpa=tap_bias,
             balance_grade_mm_s=grade,
+            command=setup.command,
         )
         return self._emit()
 
@@ -414,8 +431,7 @@ class GFBEnv(gym.Env):
         stable = (
             (not out.touchdown) and (not out.solver_failure) and out.whirl_amplitude <= self.stable_amplitude
         )
-        ep.hold = ep.hold + 1 if (stable and self._is_at_target(out)) else 0
-        success = ep.hold >= self.hold_steps
+        success = self._step_success(out, stable)
         terms = self._reward_terms(out, success)
         ep.reward_terms = terms
         ep.reward = float(sum(terms.values()))
@@ -433,6 +449,8 @@ class GFBEnv(gym.Env):
             ep.termination = TerminationReason.TOUCHDOWN
         elif success:
             ep.termination = TerminationReason.SUCCESS
+        elif self._horizon_reached():
+            ep.termination = TerminationReason.HORIZON
 
     # ---- emit ---------------------------------------------------------------------------------
     def _emit(self) -> tuple[np.ndarray, dict]:

@@ -25,6 +25,8 @@ class TerminationReason(enum.StrEnum):
     TOUCHDOWN = "touchdown"
     #: the integrator could not continue (step below its minimum); counted like a touchdown.
     SOLVER_FAILURE = "solver_failure"
+    #: a fixed-horizon (v1) task reached its last step without success (``info["certified"]`` says why).
+    HORIZON = "horizon"
 
 
 @dataclass(frozen=True)
@@ -56,7 +58,8 @@ class EpisodeSetup:
     ``task`` is the task's frozen record of the episode (e.g. its target); ``info`` the entries it adds
     to every ``info`` dict.  ``foil_damping`` is the plant's actual D_W at the start; ``damping_gain``
     fixes this episode's actuator effectiveness (None: the actuator's own, or its draw from
-    ``gain_range``)."""
+    ``gain_range``).  ``command``: the per-episode state of a commanded-speed (v1) task
+    (:class:`~gfb_env.envs.commanded.CommandedEpisode`), None for v0."""
 
     model: GFBModel
     state: np.ndarray
@@ -66,6 +69,7 @@ class EpisodeSetup:
     info: dict
     task: Any = None
     damping_gain: float | None = None
+    command: Any = None
 
 
 @dataclass
@@ -110,6 +114,7 @@ class Episode:
             itself lives in the integrator (part of its snapshot).
         shocks: base shocks that started in the last control step (:class:`~gfb_env.machine.ShockEvent`).
         shock_count: base shocks since reset.
+        command: the commanded-speed (v1) task's state of the episode (None for v0).
     """
 
     model: GFBModel
@@ -141,6 +146,7 @@ class Episode:
     balance_grade_mm_s: float = 0.0
     shocks: tuple = ()
     shock_count: int = 0
+    command: Any = None
 
     @property
     def done(self) -> bool:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, fields
 from gfb_env.envs.config import check_nonnegative
 from gfb_env.envs.episode import StepOutcome
 
-__all__ = ["RunUpReward", "WhirlRecoveryReward", "WHIRL_AMPLITUDE_CAP"]
+__all__ = ["RunUpReward", "WhirlRecoveryReward", "CommandedSpeedReward", "WHIRL_AMPLITUDE_CAP"]
 
 #: The whirl term saturates at 1.5 C: larger orbits touch down anyway, and the touchdown penalty says so.
 WHIRL_AMPLITUDE_CAP = 1.5
@@ -83,5 +83,49 @@ class WhirlRecoveryReward(_Weights):
             "whirl": -self.whirl_penalty * min(out.whirl_amplitude, WHIRL_AMPLITUDE_CAP),
             "speed_loss": -self.speed_loss_weight * max(0.0, lam_w - out.bearing_number) / lam_w,
             "success": self.success_bonus * out.bearing_number / lam_w if success else 0.0,
+            "touchdown": -self.touchdown_penalty if (out.touchdown or out.solver_failure) else 0.0,
+        }
+
+
+@dataclass(frozen=True)
+class CommandedSpeedReward(_Weights):
+    """The v1 reward: ``r = speed + whirl + certified_speed + touchdown`` with the speed progress
+    ``p(Lambda) = clip((Lambda - Lambda_ref) / (Lambda_cmd - Lambda_ref), 0, 1)`` and
+
+    * ``speed = speed_weight * p(Lambda)`` per step, only while the whirl amplitude is below the stable
+      threshold (running fast while whirling earns nothing);
+    * ``whirl = -whirl_penalty * min(A, 1.5)`` as v0;
+    * ``certified_speed = success_bonus * mean(p)`` over the last ``hold_steps`` steps, paid once at the
+      horizon and only if the end is certified stable (:mod:`gfb_env.envs.certify`);
+    * ``touchdown = -touchdown_penalty`` on touchdown or solver failure.
+
+    Why these weights: the per-step term sums to at most ``speed_weight * episode_steps`` (25 over 250
+    steps), half the terminal bonus (50), so a policy cannot buy more return by running an unstable
+    speed with a small orbit than it loses by failing the certificate; a touchdown (100) costs more than
+    the whole bonus and every step term together, so risking one is never worth it.
+    """
+
+    speed_weight: float = 0.1
+    whirl_penalty: float = 0.5
+    success_bonus: float = 50.0
+    touchdown_penalty: float = 100.0
+
+    @staticmethod
+    def progress(bearing_number: float, reference: float, command: float) -> float:
+        """``clip((Lambda - Lambda_ref) / (Lambda_cmd - Lambda_ref), 0, 1)``."""
+        p = (bearing_number - reference) / (command - reference)
+        return 0.0 if not p > 0.0 else (1.0 if p > 1.0 else float(p))
+
+    def terms(
+        self, out: StepOutcome, stable: bool, progress: float, certified_progress: float | None
+    ) -> dict[str, float]:
+        """``progress``: ``p`` of this step; ``certified_progress``: the window mean of ``p`` at a
+        certified horizon (None otherwise)."""
+        return {
+            "speed": self.speed_weight * progress if stable else 0.0,
+            "whirl": -self.whirl_penalty * min(out.whirl_amplitude, WHIRL_AMPLITUDE_CAP),
+            "certified_speed": self.success_bonus * certified_progress
+            if certified_progress is not None
+            else 0.0,
             "touchdown": -self.touchdown_penalty if (out.touchdown or out.solver_failure) else 0.0,
         }

@@ -10,7 +10,16 @@ import numpy as np
 
 from gfb_env.envs._data import nominal_task_constants
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, GFBEnv, StepOutcome, viscoelastic_model
-from gfb_env.envs.config import check_in
+from gfb_env.envs.commanded import (
+    CommandedEpisode,
+    CommandedSpeedMixin,
+    CostSpec,
+    SpeedCommand,
+    build_commanded_task,
+    check_task_version,
+    unconstrained_cache_key,
+)
+from gfb_env.envs.config import check_in, check_range
 from gfb_env.envs.rewards import RunUpReward
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import Grid
@@ -33,7 +42,11 @@ class RunUpTarget:
     target_bearing_number: float
 
 
-class RunUpEnv(GFBEnv):
+#: process-wide cache of the unconstrained best stable point of the fixed (nominal) plants
+_BEST_POINTS: dict = {}
+
+
+class RunUpEnv(CommandedSpeedMixin, GFBEnv):
     """Run a GFB rotor up from a low speed to a target speed as fast as possible and hold it stably.
 
     ## Description
@@ -131,19 +144,32 @@ class RunUpEnv(GFBEnv):
         self,
         target_fraction: float = 0.95,
         start_speed_rpm: float | None = None,
-        target_tolerance: float = 0.01,
+        target_tolerance: float | None = None,
         progress_weight: float = 10.0,
         time_penalty: float = 0.02,
         whirl_penalty: float = 0.5,
         success_bonus: float = 50.0,
-        touchdown_penalty: float = 200.0,
+        touchdown_penalty: float | None = None,
+        task_version: int = 0,
+        episode_steps: int | None = None,
+        command_fraction_range: tuple[float, float] | None = None,
+        speed_weight: float | None = None,
+        cost_whirl_amplitude: float = 0.15,
+        cost_film_thickness: float = 0.1,
+        episode_cost_limit: float = 5.0,
         grid: str | Grid = DEFAULT_GRID,
         **kwargs,
     ):
+        self.task_version = check_task_version(task_version)
         super().__init__(grid=grid, **kwargs)
         self.target_fraction = check_in("target_fraction", target_fraction, 0.0, 1.5, lo_open=True)
         self.target_tolerance = check_in(
-            "target_tolerance", target_tolerance, 0.0, 0.5, lo_open=True, hi_open=True
+            "target_tolerance",
+            0.01 if target_tolerance is None else target_tolerance,
+            0.0,
+            0.5,
+            lo_open=True,
+            hi_open=True,
         )
         if start_speed_rpm is None:  # the task's default, from the validated configuration
             start_speed_rpm = self._default_start_speed_rpm()
@@ -157,8 +183,26 @@ class RunUpEnv(GFBEnv):
                 f"start_speed_rpm must lie in speed_range_rpm {self.speed_range_rpm}, got {start_speed_rpm!r}"
             )
         self.start_speed_rpm = float(start_speed_rpm)
+        self.commanded = build_commanded_task(
+            self.task_version,
+            episode_steps=episode_steps,
+            default_episode_steps=250,
+            target_tolerance=target_tolerance,
+            speed_weight=speed_weight,
+            whirl_penalty=whirl_penalty,
+            success_bonus=success_bonus,
+            touchdown_penalty=touchdown_penalty,
+            stable_amplitude=self.stable_amplitude,
+            hold_steps=self.hold_steps,
+            costs=CostSpec(cost_whirl_amplitude, cost_film_thickness, episode_cost_limit),
+            v1_only=self._v1_only_arguments(command_fraction_range),
+        )
         self.reward = RunUpReward(
-            progress_weight, time_penalty, whirl_penalty, success_bonus, touchdown_penalty
+            progress_weight,
+            time_penalty,
+            whirl_penalty,
+            success_bonus,
+            200.0 if touchdown_penalty is None else touchdown_penalty,
         )
         self.constants = nominal_constants(self.grid, self.nominal_bearing)
         self._nominal_model = viscoelastic_model(self.grid, self.nominal_bearing)
@@ -168,6 +212,20 @@ class RunUpEnv(GFBEnv):
         if not self.start_bearing_number < self.target_bearing_number:
             raise ValueError("start_speed_rpm must be below the target speed")
         self._start_equilibrium = find_equilibrium(self._nominal_model, self.start_bearing_number)
+        self._init_command_range(command_fraction_range)
+
+    def _v1_only_arguments(self, command_range: object) -> dict:
+        """The v1-only arguments of the task (v0 refuses them when given)."""
+        return {"command_fraction_range": command_range}
+
+    def _init_command_range(self, command_fraction_range: tuple[float, float] | None) -> None:
+        """v1: ``Lambda_cmd / lambda_best`` is drawn uniformly from ``command_fraction_range`` (default
+        0.93-1.03: about 30 % of the commands lie above the best stable speed)."""
+        r = (0.93, 1.03) if command_fraction_range is None else command_fraction_range
+        lo, hi = check_range("command_fraction_range", r) if r[0] != r[1] else (float(r[0]), float(r[1]))
+        if not (self.start_bearing_number < lo * self.constants["lambda_best"] and hi <= 1.5):
+            raise ValueError(f"command_fraction_range must lie above the start speed and <= 1.5, got {r!r}")
+        self.command_fraction_range = (lo, hi)
 
     def _default_start_speed_rpm(self) -> float:
         """27 000 rpm: Lambda_0 = 0.450 for the nominal bearing, stable for every damping."""
@@ -175,6 +233,8 @@ class RunUpEnv(GFBEnv):
 
     # ------------------------------------------------------------------------------------------
     def _setup_episode(self, options) -> EpisodeSetup:
+        if self.commanded is not None:
+            return self._setup_commanded_episode()
         model = self._nominal_model
         L = model.layout
         dmin, dmax = self.damping_range
@@ -194,6 +254,47 @@ class RunUpEnv(GFBEnv):
             target,
         )
 
+    def _setup_commanded_episode(self) -> EpisodeSetup:
+        """v1: the hidden damping gain g, the commanded damping (log-uniform in the damping range; the
+        plant's D_W is g times it), the start velocity, then the speed command."""
+        rng = self.np_random
+        model = self._nominal_model
+        L = model.layout
+        gain = self.damping_actuator.draw_gain(rng)
+        dmin, dmax = self.damping_range
+        d_cmd = float(math.exp(rng.uniform(math.log(dmin), math.log(dmax))))
+        v = 1e-3 * rng.random()
+        ang = rng.uniform(0, 2 * math.pi)
+        s = self._start_equilibrium
+        s = L.with_rotor(s, *L.rotor(s)[:2], v * math.cos(ang), v * math.sin(ang))
+        b = self.nominal_bearing
+        lam_cmd = float(rng.uniform(*self.command_fraction_range)) * self.constants["lambda_best"]
+        command = SpeedCommand(b.speed_rpm_at(lam_cmd), lam_cmd, self.start_bearing_number)
+        target = RunUpTarget(self.start_bearing_number, lam_cmd)
+        return EpisodeSetup(
+            model,
+            s,
+            self.start_bearing_number,
+            gain * d_cmd,
+            b,
+            {"start_bearing_number": self.start_bearing_number},
+            target,
+            damping_gain=gain,
+            command=CommandedEpisode(command),
+        )
+
+    def _best_bearing_number_guess(self) -> float:
+        return float(self.constants["lambda_best"])
+
+    def _unconstrained_best_point(self) -> tuple[float, float]:
+        """The nominal plant is fixed: its optimum is computed once per process (~0.3 s)."""
+        model = self.episode.model
+        search = self._damping_search_range()
+        key = unconstrained_cache_key(model, search)
+        if key not in _BEST_POINTS:
+            _BEST_POINTS[key] = super()._unconstrained_best_point()
+        return _BEST_POINTS[key]
+
     @staticmethod
     def _target_info(b: BearingParameters, target: RunUpTarget) -> dict:
         return {
@@ -207,6 +308,8 @@ class RunUpEnv(GFBEnv):
         return abs(out.bearing_number - lam_t) <= self.target_tolerance * lam_t
 
     def _reward_terms(self, out: StepOutcome, success: bool) -> dict[str, float]:
+        if self.commanded is not None:
+            return self._commanded_reward_terms(out)
         task = self.episode.task
         return self.reward.terms(out, success, task.start_bearing_number, task.target_bearing_number)
 

@@ -11,13 +11,19 @@ from scipy.interpolate import RegularGridInterpolator
 
 from gfb_env.envs._data import randomized_task_table
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, viscoelastic_model
-from gfb_env.envs.config import check_bool, check_in
+from gfb_env.envs.commanded import CommandedEpisode, CommandedSpeedMixin, SpeedCommand
+from gfb_env.envs.config import check_bool, check_in, check_range
 from gfb_env.envs.run_up import RunUpEnv, RunUpTarget
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import Grid
 from gfb_env.params import BearingParameters
 
-__all__ = ["RunUpRandomizedEnv", "BestStableSpeedTable", "RandomizedRunUpTarget"]
+__all__ = ["RunUpRandomizedEnv", "BestStableSpeedTable", "RandomizedRunUpTarget", "COMMAND_RANGE_RPM"]
+
+#: v1: the commanded speed is uniform in this absolute range for every drawn bearing (rpm); chosen from
+#: the task table so that roughly 40 % of the commands lie above the drawn bearing's best stable speed
+#: (measured in ``docs/envs.md``)
+COMMAND_RANGE_RPM = (36_000.0, 46_000.0)
 
 
 @dataclass(frozen=True)
@@ -130,6 +136,7 @@ class RunUpRandomizedEnv(RunUpEnv):
         load_range_n: tuple[float, float] = (15.0, 25.0),
         observe_parameters: bool = False,
         start_speed_rpm: float | None = None,
+        command_range_rpm: tuple[float, float] | None = None,
         grid: str | Grid = DEFAULT_GRID,
         **kwargs,
     ):
@@ -153,6 +160,7 @@ class RunUpRandomizedEnv(RunUpEnv):
         self.clearance_range_m = ranges["clearance_range_m"]
         self.stiffness_factor_range = ranges["stiffness_factor_range"]
         self.load_range_n = ranges["load_range_n"]
+        self._command_range_rpm_arg = command_range_rpm
         super().__init__(start_speed_rpm=start_speed_rpm, grid=grid, **kwargs)
 
     def _default_start_speed_rpm(self) -> float:
@@ -172,27 +180,58 @@ class RunUpRandomizedEnv(RunUpEnv):
                     speeds.append(b.speed_rpm_at(self.table(c, fk, fl)["lambda_c_dmin"]))
         return float(min(speeds))
 
+    def _v1_only_arguments(self, command_range: object) -> dict:
+        if command_range is not None:
+            raise ValueError("command_fraction_range: RunUpRandomized commands in rpm (command_range_rpm)")
+        return {"command_range_rpm": self._command_range_rpm_arg}
+
+    def _init_command_range(self, command_fraction_range: tuple[float, float] | None) -> None:
+        """v1: ``n_cmd`` is drawn uniformly in absolute rpm from ``command_range_rpm`` (default
+        :data:`COMMAND_RANGE_RPM`), the same range for every bearing, so the command does not reveal the
+        draw."""
+        r = COMMAND_RANGE_RPM if self._command_range_rpm_arg is None else self._command_range_rpm_arg
+        lo, hi = check_range("command_range_rpm", r)
+        if not self.start_speed_rpm < lo and hi <= self.speed_range_rpm[1]:
+            raise ValueError(
+                f"command_range_rpm must lie above the start speed {self.start_speed_rpm:g} rpm and inside "
+                f"speed_range_rpm, got {r!r}"
+            )
+        self.command_range_rpm = (lo, hi)
+
+    # the parameter ablation's entries come before the v1 command entries (which end the observation)
     def _extra_observation_bounds(self):
+        rest = super()._extra_observation_bounds()
         if not getattr(self, "observe_parameters", False):
-            return None
-        return np.zeros(3, dtype=np.float32), np.full(3, 2.0, dtype=np.float32)
+            return rest
+        lo, hi = np.zeros(3, dtype=np.float32), np.full(3, 2.0, dtype=np.float32)
+        return (lo, hi) if rest is None else (np.concatenate([lo, rest[0]]), np.concatenate([hi, rest[1]]))
+
+    def _extra_observation_names(self) -> tuple[str, ...]:
+        rest = super()._extra_observation_names()
+        if not getattr(self, "observe_parameters", False):
+            return rest
+        return ("clearance", "stiffness_factor", "load", *rest)
 
     def _extra_observation(self):
+        rest = super()._extra_observation()
         if not self.observe_parameters:
-            return None
+            return rest
         task, nb = self.episode.task, self.nominal_bearing
-        return np.array(
+        own = np.array(
             [
                 task.clearance_m / nb.clearance_m,
                 task.stiffness_factor,
                 task.load_n / nb.external_load_per_bearing_n,
             ]
         )
+        return own if rest is None else np.concatenate([own, rest])
 
     #: ``reset(options=...)`` fixes a draw: each key inside the table's range
     reset_options = ("clearance_m", "stiffness_factor", "load_n")
 
     def _setup_episode(self, options) -> EpisodeSetup:
+        if self.commanded is not None:
+            return self._setup_commanded_episode(options)
         rng = self.np_random
         c = float(rng.uniform(*self.clearance_range_m))
         fk = float(rng.uniform(*self.stiffness_factor_range))
@@ -233,3 +272,64 @@ class RunUpRandomizedEnv(RunUpEnv):
     def _optimum_damping(self) -> float:
         """Oracle expert (knows the drawn bearing): its optimum damping."""
         return self.episode.task.optimum_damping
+
+    def _draw_bearing(self, options) -> tuple[float, float, float, BearingParameters, object]:
+        """(C, f_K, F_L, bearing, model) of a new episode (the draws, then the fixed options)."""
+        rng = self.np_random
+        c = float(rng.uniform(*self.clearance_range_m))
+        fk = float(rng.uniform(*self.stiffness_factor_range))
+        fl = float(rng.uniform(*self.load_range_n))
+        bounds = dict(zip(self.reset_options, self.table.bounds, strict=True))
+        fixed = {k: check_in(f"reset option {k!r}", v, *bounds[k]) for k, v in options.items()}
+        c = fixed.get("clearance_m", c)
+        fk = fixed.get("stiffness_factor", fk)
+        fl = fixed.get("load_n", fl)
+        b = self.nominal_bearing.replace(clearance_m=c, external_load_per_bearing_n=fl)
+        return c, fk, fl, b, viscoelastic_model(self.grid, b, foil_stiffness=fk * b.foil_stiffness)
+
+    def _setup_commanded_episode(self, options) -> EpisodeSetup:  # type: ignore[override]
+        """v1: the bearing, the hidden damping gain, the commanded damping (the plant's D_W is g times
+        it), the start velocity, then the speed command (absolute rpm, independent of the draw)."""
+        rng = self.np_random
+        c, fk, fl, b, model = self._draw_bearing(options)
+        gain = self.damping_actuator.draw_gain(rng)
+        dmin, dmax = self.damping_range
+        d_cmd = float(math.exp(rng.uniform(math.log(dmin), math.log(dmax))))
+        v = 1e-3 * rng.random()
+        ang = rng.uniform(0, 2 * math.pi)
+        n_cmd = float(rng.uniform(*self.command_range_rpm))
+        lam0 = b.bearing_number_at(self.start_speed_rpm)
+        s = find_equilibrium(model, lam0)
+        L = model.layout
+        s = L.with_rotor(s, *L.rotor(s)[:2], v * math.cos(ang), v * math.sin(ang))
+        lam_cmd = b.bearing_number_at(n_cmd)
+        best = self.table(c, fk, fl)
+        # the task record: the table's optimum is only a guess (the exact one:
+        # best_stable_operating_point()); the target is the command
+        target = RandomizedRunUpTarget(lam0, lam_cmd, c, fk, fl, best["d_opt"])
+        info = {
+            "start_bearing_number": lam0,
+            "clearance_um": c * 1e6,
+            "stiffness_factor": fk,
+            "foil_stiffness": model.foil_stiffness,
+            "load_n": fl,
+        }
+        return EpisodeSetup(
+            model,
+            s,
+            lam0,
+            gain * d_cmd,
+            b,
+            info,
+            target,
+            damping_gain=gain,
+            command=CommandedEpisode(SpeedCommand(n_cmd, lam_cmd, lam0)),
+        )
+
+    def _best_bearing_number_guess(self) -> float:
+        t = self.episode.task
+        return self.table(t.clearance_m, t.stiffness_factor, t.load_n)["lambda_best"]
+
+    def _unconstrained_best_point(self) -> tuple[float, float]:
+        """A drawn plant: computed per episode (~0.3 s; cached in the episode by the caller)."""
+        return CommandedSpeedMixin._unconstrained_best_point(self)

@@ -13,6 +13,12 @@ C_nom, velocities in C_nom / T_nom, the envelope (max - min over the last contro
 speed over ``speed_scale_rpm``, the damping on the action scale and the midplane pressures ``P = p / p0``.
 :class:`ObservationLayout` holds the indices, the bounds and the decoders that agents need; nothing
 else hard-codes an index.
+
+The task extras have names (:attr:`ObservationLayout.extra_names`); the v1 tasks end the observation
+with :data:`SPEED_COMMAND` (the commanded speed ``n_cmd / 60 000 rpm``, [0, 1]) and :data:`TIME_LEFT`
+(the fraction of the episode's control steps still to come, ``steps_left / episode_steps``, [0, 1]);
+agents read them with :meth:`ObservationLayout.index` or the decoders
+:meth:`ObservationLayout.speed_command_rpm` and :meth:`ObservationLayout.time_left`.
 """
 
 from __future__ import annotations
@@ -36,6 +42,8 @@ __all__ = [
     "OBS_SPEED",
     "OBS_DAMPING",
     "N_ROTOR_OBS",
+    "SPEED_COMMAND",
+    "TIME_LEFT",
 ]
 
 # observation layout (before the pressure probes)
@@ -47,6 +55,10 @@ POSITION_BOUND = 3.0
 VELOCITY_BOUND = 3.0
 #: orbit extent <= 2 POSITION_BOUND.
 EXTENT_BOUND = 2.0 * POSITION_BOUND
+#: name of the v1 observation entry ``n_cmd / speed_scale_rpm`` (the commanded operating speed)
+SPEED_COMMAND = "speed_command"
+#: name of the v1 observation entry ``steps_left / episode_steps`` (fraction of the horizon remaining)
+TIME_LEFT = "time_left"
 #: 0 <= P = p / p0 <= 10: the loaded film's peak is ~2-3 p0 near touchdown.
 PRESSURE_BOUND = 10.0
 
@@ -91,6 +103,8 @@ class ObservationLayout:
         speed_scale_rpm: ``obs[OBS_SPEED] = n / speed_scale_rpm``.
         max_speed_rpm: top of the speed range (sets the speed bound, at least 1).
         extra_low, extra_high: bounds of task-specific entries appended after the probes.
+        extra_names: their names (default ``extra_0``, ``extra_1``, ...); the v1 tasks end with
+            :data:`SPEED_COMMAND` and :data:`TIME_LEFT`.
     """
 
     n_pressure_probes: int
@@ -98,6 +112,17 @@ class ObservationLayout:
     max_speed_rpm: float
     extra_low: tuple[float, ...] = ()
     extra_high: tuple[float, ...] = ()
+    extra_names: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if len(self.extra_low) != len(self.extra_high):
+            raise ValueError("extra_low and extra_high must have the same length")
+        if not self.extra_names:
+            object.__setattr__(self, "extra_names", tuple(f"extra_{k}" for k in range(len(self.extra_low))))
+        elif len(self.extra_names) != len(self.extra_low) or len(set(self.extra_names)) != len(
+            self.extra_names
+        ):
+            raise ValueError(f"extra_names must name each extra entry once, got {self.extra_names!r}")
 
     xi: int = OBS_XI
     eta: int = OBS_ETA
@@ -135,7 +160,33 @@ class ObservationLayout:
         low[k:], high[k:] = self.extra_low, self.extra_high
         return low, high
 
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The name of every entry, in order (rotor entries, ``pressure_<k>``, the task extras)."""
+        rotor = ("xi", "eta", "xi_dot", "eta_dot", "xi_extent", "eta_extent", "speed", "damping")
+        probes = tuple(f"pressure_{k}" for k in range(self.n_pressure_probes))
+        return rotor + probes + self.extra_names
+
+    def index(self, name: str) -> int:
+        """The index of the entry ``name`` (ValueError naming the known ones if absent)."""
+        names = self.names
+        if name not in names:
+            raise ValueError(f"observation has no entry {name!r}; it has {', '.join(names)}")
+        return names.index(name)
+
+    def has(self, name: str) -> bool:
+        """Whether the observation has an entry ``name``."""
+        return name in self.names
+
     # decoders for agents (they read only the documented observation)
+    def speed_command_rpm(self, obs: np.ndarray) -> float:
+        """The commanded operating speed (rpm) of a v1 task."""
+        return float(obs[self.index(SPEED_COMMAND)]) * self.speed_scale_rpm
+
+    def time_left(self, obs: np.ndarray) -> float:
+        """Fraction of the episode's control steps still to come (v1 tasks; 1 at reset, 0 at the end)."""
+        return float(obs[self.index(TIME_LEFT)])
+
     def speed_rpm(self, obs: np.ndarray) -> float:
         """Rotor speed (rpm) from an observation."""
         return float(obs[OBS_SPEED]) * self.speed_scale_rpm

@@ -8,14 +8,24 @@ import math
 import numpy as np
 
 from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, GFBEnv, StepOutcome, viscoelastic_model
+from gfb_env.envs.commanded import (
+    CommandedEpisode,
+    CommandedSpeedMixin,
+    CostSpec,
+    SpeedCommand,
+    build_commanded_task,
+    check_task_version,
+    unconstrained_cache_key,
+)
+from gfb_env.envs.config import check_in
 from gfb_env.envs.rewards import WhirlRecoveryReward
-from gfb_env.envs.run_up import nominal_constants
+from gfb_env.envs.run_up import _BEST_POINTS, nominal_constants
 from gfb_env.model import Grid
 
 __all__ = ["WhirlRecoveryEnv"]
 
 
-class WhirlRecoveryEnv(GFBEnv):
+class WhirlRecoveryEnv(CommandedSpeedMixin, GFBEnv):
     """Recover from a fully developed whirl (a stable limit cycle above the critical speed).
 
     ## Description
@@ -85,13 +95,40 @@ class WhirlRecoveryEnv(GFBEnv):
         whirl_penalty: float = 0.5,
         speed_loss_weight: float = 2.0,
         success_bonus: float = 50.0,
-        touchdown_penalty: float = 200.0,
+        touchdown_penalty: float | None = None,
+        task_version: int = 0,
+        episode_steps: int | None = None,
+        target_tolerance: float | None = None,
+        speed_weight: float | None = None,
+        reference_fraction: float | None = None,
+        cost_whirl_amplitude: float = 0.15,
+        cost_film_thickness: float = 0.1,
+        episode_cost_limit: float = 5.0,
         grid: str | Grid = DEFAULT_GRID,
         **kwargs,
     ):
+        self.task_version = check_task_version(task_version)
         super().__init__(grid=grid, **kwargs)
+        self.commanded = build_commanded_task(
+            self.task_version,
+            episode_steps=episode_steps,
+            default_episode_steps=200,
+            target_tolerance=target_tolerance,
+            speed_weight=speed_weight,
+            whirl_penalty=whirl_penalty,
+            success_bonus=success_bonus,
+            touchdown_penalty=touchdown_penalty,
+            stable_amplitude=self.stable_amplitude,
+            hold_steps=self.hold_steps,
+            costs=CostSpec(cost_whirl_amplitude, cost_film_thickness, episode_cost_limit),
+            v1_only={"target_tolerance": target_tolerance, "reference_fraction": reference_fraction},
+        )
         self.reward = WhirlRecoveryReward(
-            time_penalty, whirl_penalty, speed_loss_weight, success_bonus, touchdown_penalty
+            time_penalty,
+            whirl_penalty,
+            speed_loss_weight,
+            success_bonus,
+            200.0 if touchdown_penalty is None else touchdown_penalty,
         )
         self.constants = nominal_constants(self.grid, self.nominal_bearing)
         w = self.constants["whirl"]
@@ -107,8 +144,21 @@ class WhirlRecoveryEnv(GFBEnv):
             raise ValueError(
                 f"damping_range {self.damping_range} must contain the whirl damping {self.whirl_damping:.3g}"
             )
+        #: v1: the speed progress is zero at ``reference_fraction * lambda_best`` (default 0.85: below
+        #: the fold of the whirl cycles at every damping, the speed a safe recovery dips to)
+        self.reference_fraction = check_in(
+            "reference_fraction",
+            0.85 if reference_fraction is None else reference_fraction,
+            0.0,
+            1.0,
+            lo_open=True,
+            hi_open=True,
+        )
+        self.reference_bearing_number = self.reference_fraction * float(self.constants["lambda_best"])
 
     def _setup_episode(self, options) -> EpisodeSetup:
+        if self.commanded is not None:
+            return self._setup_commanded_episode()
         model = self._model_nominal
         phase = float(self.np_random.uniform(0.0, self.whirl_period))
         integ = self.new_integrator(model, self._whirl_state, self.whirl_bearing_number, self.whirl_damping)
@@ -122,7 +172,45 @@ class WhirlRecoveryEnv(GFBEnv):
         }
         return EpisodeSetup(model, integ.state, self.whirl_bearing_number, self.whirl_damping, b, info)
 
+    def _setup_commanded_episode(self) -> EpisodeSetup:
+        """v1: the developed whirl as v0 (the plant's actual D_W = d_opt, so the actuator's command is
+        d_opt / g with the hidden gain g drawn next), command = Lambda_w."""
+        setup = self._setup_episode_v0_start()
+        gain = self.damping_actuator.draw_gain(self.np_random)
+        lam_w = self.whirl_bearing_number
+        b = self.nominal_bearing
+        setup.damping_gain = gain
+        setup.command = CommandedEpisode(
+            SpeedCommand(b.speed_rpm_at(lam_w), lam_w, self.reference_bearing_number)
+        )
+        return setup
+
+    def _setup_episode_v0_start(self) -> EpisodeSetup:
+        model = self._model_nominal
+        phase = float(self.np_random.uniform(0.0, self.whirl_period))
+        integ = self.new_integrator(model, self._whirl_state, self.whirl_bearing_number, self.whirl_damping)
+        integ.advance(phase)
+        b = self.nominal_bearing
+        info = {
+            "whirl_bearing_number": self.whirl_bearing_number,
+            "whirl_speed_rpm": b.speed_rpm_at(self.whirl_bearing_number),
+        }
+        return EpisodeSetup(model, integ.state, self.whirl_bearing_number, self.whirl_damping, b, info)
+
+    def _best_bearing_number_guess(self) -> float:
+        return float(self.constants["lambda_best"])
+
+    def _unconstrained_best_point(self) -> tuple[float, float]:
+        """The nominal plant is fixed: its optimum is computed once per process (~0.3 s)."""
+        model = self.episode.model
+        key = unconstrained_cache_key(model, self._damping_search_range())
+        if key not in _BEST_POINTS:
+            _BEST_POINTS[key] = super()._unconstrained_best_point()
+        return _BEST_POINTS[key]
+
     def _reward_terms(self, out: StepOutcome, success: bool) -> dict[str, float]:
+        if self.commanded is not None:
+            return self._commanded_reward_terms(out)
         return self.reward.terms(out, success, self.whirl_bearing_number)
 
     def scripted_action(self) -> np.ndarray:

@@ -40,6 +40,7 @@ decay of ``exp(60 sigma)`` per control step: ``sigma`` from -0.025/tau at the op
 from __future__ import annotations
 
 import math
+
 import numpy as np
 from scipy.optimize import least_squares
 
@@ -397,8 +398,10 @@ class _V1Rule(ScriptedPolicy):
         self.nominal = u.nominal_bearing
         self.control_interval = float(u.control_interval)
         self.max_speed_rpm = float(u.speed_range_rpm[1])
-        spec_ = getattr(u, "spec", None)
-        self.episode_steps = int(spec_.max_episode_steps) if spec_ and spec_.max_episode_steps else 250
+        commanded = getattr(u, "commanded", None)  # the v1 objective's documented configuration
+        self.episode_steps = int(commanded.episode_steps) if commanded is not None else 250
+        # the speed at which the v1 progress is zero (RunUp: the start; WhirlRecovery: 0.85 lambda_best)
+        self.reference_bearing_number = getattr(u, "reference_bearing_number", None)
 
     def command_rpm(self, obs: np.ndarray, m: dict) -> float | None:
         if m.get("cmd_rpm") is None:
@@ -566,6 +569,8 @@ class MarginSearchAgent(_V1Rule):
         else:
             m["table"] = self._nominal_table()
         m["lam_ref"] = self._lam(m, rpm)
+        if self.reference_bearing_number is not None and not self.randomized:
+            m["lam_ref"] = float(self.reference_bearing_number)
         m["mode"] = "run"
 
     def _act(self, obs, rpm, m):
@@ -648,14 +653,14 @@ class RecoveryAgent(MarginSearchAgent):
     def _act(self, obs, rpm, m):
         if m["k"] == 0:
             m["table"] = self._nominal_table()
-            m["lam_ref"] = self._lam(m, rpm) * 0.9  # overwritten below once the reference is known
             ind = self.spec.actions.damping_from_action(float(obs[self.spec.observations.damping]))
             lo, hi = self.damping_range
             post: GainPosterior = m["post"]
             if lo * 1.001 < ind < hi * 0.999 and len(post.gains) > 1:
                 g = self.start_damping / ind
                 post.log_w = np.where(np.abs(np.log(post.gains / g)) < 0.06, 0.0, -50.0)
-            m["lam_ref"] = self._lam(m, rpm)
+            ref = self.reference_bearing_number
+            m["lam_ref"] = float(ref) if ref is not None else 0.85 * self.nmap.lambda_best
             self._decide(m, obs)
             m["meter"].floor = 0.04
         if m["mode"] == "dip":

@@ -332,6 +332,110 @@ class DecayMeter:
 
 
 # ----------------------------------------------------------------------------------------------
+#: noise of one observation in the channels the unbalance probe demodulates (docs/machine.md defaults:
+#: probes 0.3 um per sample -> 0.006 C; velocity 0.0038 C/T; taps 0.35 kPa -> 0.00345 p0)
+PROBE_CHANNEL_SD = (0.006, 0.006, 0.0038, 0.0038)
+TAP_SD = 0.35e3 / 101325.0
+
+
+def unbalance_vectors(
+    model: GFBModel,
+    state: np.ndarray,
+    lam: float,
+    dampings: np.ndarray,
+    n_probes: int,
+    position_scale: float = 1.0,
+    velocity_scale: float = 1.0,
+) -> np.ndarray:
+    """The linear 1x response to a unit unbalance (:func:`gfb_env.analysis.response.unbalance_response`:
+    ``(i Lambda I - J) z = b``) in the observation's channels ``[xi, eta, xi', eta', P_0..P_{n-1}]`` for
+    each actual damping: shape ``(len(dampings), 4 + n_probes)``, complex."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    L = model.layout
+    n = L.size
+    b = np.zeros(n, dtype=complex)
+    b[L.xi_dot_index] = -1j * lam * lam
+    b[L.eta_dot_index] = lam * lam
+    idx = np.r_[L.xi_index, L.eta_index, L.xi_dot_index, L.eta_dot_index, L.midplane_probe_indices(n_probes)]
+    scale = np.r_[position_scale, position_scale, velocity_scale, velocity_scale, np.ones(n_probes)]
+    eye = 1j * lam * sp.identity(n, format="csc")
+    out = np.empty((len(dampings), len(idx)), dtype=complex)
+    for j, d in enumerate(np.asarray(dampings, dtype=float)):
+        J = model.jacobian(state, lam, float(d)).astype(complex)
+        out[j] = spla.spsolve((eye - J).tocsc(), b)[idx] * scale
+    return out
+
+
+class UnbalanceProbe:
+    """Demodulate the 1x unbalance orbit at a few commanded dampings and infer the damping gain.
+
+    At a constant speed the residual unbalance drives a synchronous orbit ``Re(c z(g D) e^{i theta_k})``
+    in every channel (positions, velocities, pressure taps), ``theta_k = k phi`` at the k-th
+    observation (``phi = omega_0 x control step``), ``c`` the unknown unbalance (size and phase, one
+    complex number), ``z`` the plant's linear response (:func:`unbalance_vectors`).  The orbit's size
+    and phase change with the actual damping (on the nominal bearing at Lambda = 0.45 |xi| halves from
+    D_W = 0.1 to 3, the phase of eta turns by ~50 deg): the *ratios* between dampings do not depend on
+    ``c``, so ``g`` follows from a least-squares fit of ``c`` per candidate ``g`` (chi^2 with the
+    documented sensor noise).  Each segment's samples are regressed on ``[1, cos theta_k, sin theta_k]``
+    (the constant absorbs the equilibrium and the sensor biases)."""
+
+    def __init__(self, n_probes: int):
+        self.n_probes = int(n_probes)
+        self.segments: list[dict] = []  # {"d": commanded damping, "k": [...], "y": [...]}
+
+    def channels(self, obs: np.ndarray) -> np.ndarray:
+        return np.r_[obs[0:4], obs[8 : 8 + self.n_probes]].astype(float)
+
+    def add(self, d_cmd: float, k: int, obs: np.ndarray) -> None:
+        if not self.segments or self.segments[-1]["d"] != d_cmd:
+            self.segments.append({"d": d_cmd, "k": [], "y": []})
+        self.segments[-1]["k"].append(k)
+        self.segments[-1]["y"].append(self.channels(obs))
+
+    def amplitudes(self, phi: float) -> tuple[np.ndarray, np.ndarray]:
+        """Complex 1x amplitudes ``w = A - iB`` (segments x channels) and their per-component variance."""
+        sd = np.r_[PROBE_CHANNEL_SD, np.full(self.n_probes, TAP_SD)]
+        w, var = [], []
+        for seg in self.segments:
+            th = phi * np.asarray(seg["k"], dtype=float)
+            X = np.column_stack([np.ones_like(th), np.cos(th), np.sin(th)])
+            coef, *_ = np.linalg.lstsq(X, np.asarray(seg["y"]), rcond=None)
+            w.append(coef[1] - 1j * coef[2])
+            cov = np.linalg.pinv(X.T @ X)
+            var.append(0.5 * (cov[1, 1] + cov[2, 2]) * sd**2)
+        return np.array(w), np.array(var)
+
+    def best_phase_step(self, phi0: float, rel: float = 0.0, n: int = 1) -> float:
+        """The phase step per observation: ``phi0``, or (``rel > 0``, an uncertain time scale) the one in
+        ``phi0 (1 +- rel)`` with the most coherent 1x power."""
+        if rel <= 0:
+            return phi0
+        best, arg = -1.0, phi0
+        for phi in np.linspace(phi0 * (1 - rel), phi0 * (1 + rel), n):
+            w, var = self.amplitudes(phi)
+            power = float(np.sum(np.abs(w) ** 2 / var))
+            if power > best:
+                best, arg = power, phi
+        return arg
+
+    def log_likelihood(self, phi: float, vectors: np.ndarray, model_error: float = 0.0) -> np.ndarray:
+        """``-chi^2 / 2`` per candidate gain: ``vectors`` of shape ``(n_gains, n_segments, channels)``
+        (the model at ``g x`` each segment's commanded damping); ``model_error``: a relative error of the
+        model's response added to the noise (an identified plant)."""
+        w, var = self.amplitudes(phi)
+        out = np.empty(vectors.shape[0])
+        for i, M in enumerate(vectors):
+            v = var + (model_error * np.abs(w)) ** 2
+            a = (np.conj(M) * w / v).sum()
+            bb = (np.abs(M) ** 2 / v).sum()
+            c = a / bb
+            out[i] = -0.5 * float((np.abs(w - c * M) ** 2 / v).sum())
+        return out
+
+
+# ----------------------------------------------------------------------------------------------
 #: sensor errors in observation units (docs/machine.md, the MACHINE_V1 defaults): per-episode bias
 #: (probes 1 um, taps 0.9 kPa) and per-observation noise (probes 0.3 um, taps 0.35 kPa), plus the 1x
 #: unbalance orbit sampled at a random phase (up to 0.024 C)
@@ -476,6 +580,8 @@ class MarginSearchAgent(_V1Rule):
         safe_growth_rate: float = -0.004,
         probe_points: int = 2,
         probe_factor: float = 1.6,
+        unbalance_dampings: tuple[float, ...] = (0.3, 1.5, 7.0),
+        unbalance_samples: int = 10,
         name: str = "margin_search",
         **kw,
     ):
@@ -492,10 +598,15 @@ class MarginSearchAgent(_V1Rule):
         self.gain_range = act.gain_range
         self.damping_range = tuple(u.damping_range)
         self.n_identify = int(n_identify) if self.randomized else 0
-        self.rel_sd = float(rel_sd if rel_sd is not None else (0.01 if self.randomized else 0.004))
+        # relative error of the identified plant's boundary: ~3.5 % (lambda_best error of the fit, rms over
+        # seeds 0-5: sensor biases), 0.4 % on the nominal bearing (table interpolation)
+        self.rel_sd = float(rel_sd if rel_sd is not None else (0.035 if self.randomized else 0.004))
         self.fail_cost, self.backoff = float(fail_cost), float(backoff)
         self.safe_growth_rate = float(safe_growth_rate)
         self.probe_points, self.probe_factor = int(probe_points), float(probe_factor)
+        self.unbalance_dampings = tuple(float(d) for d in unbalance_dampings)
+        self.unbalance_samples = int(unbalance_samples)
+        self.n_probes = int(u.n_pressure_probes)
         self._tables: dict = {}
         self.last: dict | None = None
 
@@ -505,14 +616,15 @@ class MarginSearchAgent(_V1Rule):
             model = viscoelastic_model(self.grid, self.nominal)
             lb = self.nmap.lambda_best
             self._tables["nominal"] = StabilityTable.compute(model, 0.62 * lb, 1.12 * lb)
+            self._tables["nominal_model"] = model
         return self._tables["nominal"]
 
-    def _table_for(self, est: BearingEstimate) -> tuple[StabilityTable, object]:
+    def _table_for(self, est: BearingEstimate) -> tuple[StabilityTable, object, GFBModel]:
         b = self.nominal.replace(clearance_m=est.clearance_m, external_load_per_bearing_n=est.load_n)
         model = viscoelastic_model(self.grid, b, foil_stiffness=est.stiffness_factor * b.foil_stiffness)
         lb = self.published(est.clearance_m, est.stiffness_factor, est.load_n)["lambda_best"]
         lam0 = b.bearing_number_at(self.start_speed_rpm) if self.start_speed_rpm else 0.6 * lb
-        return StabilityTable.compute(model, min(lam0, 0.62 * lb), 1.12 * lb), b
+        return StabilityTable.compute(model, min(lam0, 0.62 * lb), 1.12 * lb), b, model
 
     # -- memory ---------------------------------------------------------------------------------
     def _new_memory(self) -> dict:
@@ -564,23 +676,98 @@ class MarginSearchAgent(_V1Rule):
         if self.randomized:
             est = identify_bearing(self.identifier, m["obs"])
             m["estimate"] = est
-            m["table"], m["bearing"] = self._table_for(est)
+            m["table"], m["bearing"], m["model"] = self._table_for(est)
             m["rate"] = self.spec.actions.rpm_per_step(m["bearing"], self.control_interval)
         else:
             m["table"] = self._nominal_table()
+            m["model"] = self._tables["nominal_model"]
         m["lam_ref"] = self._lam(m, rpm)
         if self.reference_bearing_number is not None and not self.randomized:
             m["lam_ref"] = float(self.reference_bearing_number)
-        m["mode"] = "run"
+        m["mode"] = "probe" if (self.unbalance_dampings and len(m["post"].gains) > 1) else "run"
+
+    # -- the unbalance probe at the start speed -------------------------------------------------
+    def _probe_plan(self, obs: np.ndarray) -> list[float]:
+        """The probe's dampings, nearest the actuator's present position first (the rate limit makes
+        a far jump cost several steps)."""
+        ind = self.spec.actions.damping_from_action(float(obs[self.spec.observations.damping]))
+        ds = sorted(self.unbalance_dampings)
+        return ds if abs(math.log(ds[0] / ind)) <= abs(math.log(ds[-1] / ind)) else ds[::-1]
+
+    def _probe_step(self, obs: np.ndarray, m: dict) -> float | None:
+        """One step of the probe: the damping to command, or None when it is done (posterior updated)."""
+        if "probe" not in m:
+            m["probe"] = {"plan": self._probe_plan(obs), "j": 0, "settle": 0, "n": 0, "quiet": 0}
+            m["unb"] = UnbalanceProbe(self.n_probes)
+            m["meter"].floor = m["meter"].floor or self.spec.observations.envelope(obs)
+        pr = m["probe"]
+        d = pr["plan"][pr["j"]]
+        ind = self.spec.actions.damping_from_action(float(obs[self.spec.observations.damping]))
+        env_ = self.spec.observations.envelope(obs)
+        floor = m["meter"].floor or env_
+        pr["quiet"] = 0 if env_ > floor + 0.04 else pr["quiet"] + 1  # a shock spoils the 1x fit
+        arrived = abs(math.log(max(ind, 1e-9) / d)) < 0.03
+        if not arrived or pr["quiet"] < 3:
+            pr["settle"] = 0
+        else:
+            pr["settle"] += 1
+        if pr["settle"] > 2:  # the free transient of the damping change has decayed (>= 2 steps)
+            m["unb"].add(d, m["k"], obs)
+            pr["n"] += 1
+            if pr["n"] >= self.unbalance_samples:
+                pr["j"], pr["n"], pr["settle"] = pr["j"] + 1, 0, 0
+                if pr["j"] >= len(pr["plan"]):
+                    self._finish_probe(m)
+                    return None
+                d = pr["plan"][pr["j"]]
+        if m["k"] > 90:  # never spend more than ~a third of the episode on it
+            self._finish_probe(m)
+            return None
+        return d
+
+    def _finish_probe(self, m: dict) -> None:
+        unb: UnbalanceProbe = m["unb"]
+        segs = [sg for sg in unb.segments if len(sg["k"]) >= 5]
+        unb.segments = segs
+        if len(segs) >= 2:
+            b, model = m["bearing"], m["model"]
+            lam = b.bearing_number_at(self.start_speed_rpm) if self.start_speed_rpm else m["lam_ref"]
+            s0 = find_equilibrium(model, lam)
+            post: GainPosterior = m["post"]
+            ds = np.array([sg["d"] for sg in segs])
+            pos_scale = b.clearance_m / self.nominal.clearance_m
+            vel_scale = pos_scale * self.nominal.time_scale_s / b.time_scale_s
+            vec = unbalance_vectors(
+                model,
+                s0,
+                lam,
+                (post.gains[:, None] * ds[None, :]).ravel(),
+                self.n_probes,
+                pos_scale,
+                vel_scale,
+            ).reshape(len(post.gains), len(ds), -1)
+            phi0 = self.control_interval * lam  # omega_0 x control step = Lambda x control interval
+            phi = unb.best_phase_step(phi0, 0.06 if self.randomized else 0.0, 241)
+            ll = unb.log_likelihood(phi, vec, 0.1 if self.randomized else 0.03)
+            post.log_w = post.log_w + ll
+            post.measurements.append(("unbalance", lam, tuple(ds), phi))
+            m["probe_ll"] = ll
+        m["mode"], m["dirty"] = "run", True
 
     def _act(self, obs, rpm, m):
         if m["mode"] == "identify":
             m["obs"].append(np.asarray(obs, dtype=float))
             if len(m["obs"]) < self.n_identify:
-                return [0.0, self.spec.damping_action(m["d_cmd"])]
+                d0 = self._probe_plan(obs)[0] if self.unbalance_dampings else m["d_cmd"]
+                return [0.0, self.spec.damping_action(d0)]
             self._init_plant(m, obs, rpm)
         elif m["mode"] == "init":
             self._init_plant(m, obs, rpm)
+        if m["mode"] == "probe":
+            d = self._probe_step(obs, m)
+            if d is not None:
+                m["d_prev"] = d
+                return [0.0, self.spec.damping_action(d)]
         lam = self._lam(m, rpm)
         env_ = self.spec.observations.envelope(obs)
         meter: DecayMeter = m["meter"]

@@ -764,6 +764,11 @@ class MarginSearchAgent(_V1Rule):
         elif m["mode"] == "init":
             self._init_plant(m, obs, rpm)
         if m["mode"] == "probe":
+            # the floor follows the envelope (the 1x orbit changes with the damping); shocks are measured
+            for rate, lam_ev, d_ev, _n in m["meter"].update(
+                self.spec.observations.envelope(obs), self._lam(m, rpm), m["d_prev"] or m["d_cmd"]
+            ):
+                m["post"].add_decay(m["table"], lam_ev, d_ev, rate)
             d = self._probe_step(obs, m)
             if d is not None:
                 m["d_prev"] = d
@@ -784,12 +789,14 @@ class MarginSearchAgent(_V1Rule):
                 m["probe_d"] = m["d_cmd"] * f
         elif meter.event is None and m.get("probe_d") is not None:
             m["probe_d"] = None
-        # whirl guard: an envelope well above the floor that does not decay over 3 steps
+        # whirl guard: an envelope above the floor that grows in 3 consecutive steps (a shock's transient
+        # decays; a steady 1x orbit of another size stays level), or a large one that does not decay
         excess = env_ - (meter.floor or 0.0)
-        grow = excess > 0.05 and excess >= 0.97 * m.get("prev_excess", 0.0)
+        prev = m.get("prev_excess", 0.0)
+        grow = (excess > 0.05 and excess > 1.02 * prev) or (excess > 0.5 and excess > 0.97 * prev)
         m["grow"] = m.get("grow", 0) + 1 if grow else 0
         m["prev_excess"] = excess
-        if m["grow"] >= 3 or excess > 1.0 and m["grow"] >= 2:
+        if m["grow"] >= 3:
             if m["mode"] != "recover":
                 m["post"].add_instability(m["table"], lam, m["d_cmd"])
                 m["cap"] = min(m["cap"], lam * (1 - self.backoff / 2))

@@ -135,9 +135,31 @@ class RunUpEnv(CommandedSpeedMixin, GFBEnv):
     ``render_mode=None``, and the machine (:mod:`gfb_env.machine`, ``docs/machine.md``): ``motor``,
     ``damping_actuator``, ``proximity_probes``, ``pressure_taps`` (defaults: v0's ideal machine).
 
+    ## v1 (``gfb_env/RunUp-v1``, ``task_version=1``; :mod:`gfb_env.envs.commanded`, ``docs/envs.md``)
+
+    The instrumented machine (``docs/machine.md``) with a hidden damping effectiveness ``g``
+    log-uniform in [0.316, 3.16] (actual D_W = g x commanded) and a commanded-speed objective: per
+    episode ``Lambda_cmd`` is drawn uniformly in ``command_fraction_range`` (0.93-1.03) x lambda_best
+    (about 30 % of the commands lie above the best stable speed) and observed; the observation ends with
+    ``[n_cmd / 60 000 rpm, steps_left / episode_steps]`` (names ``speed_command``, ``time_left``, bounds
+    [0, 1]).  Fixed horizon ``episode_steps = 250`` (``terminated`` at the last step); touchdown and
+    solver failure end earlier.  At the horizon the end is certified iff the whirl amplitude stayed below
+    ``stable_amplitude`` over the last ``hold_steps`` steps and the actual plant's equilibrium at the
+    final Lambda and actual D_W is linearly stable (``info["certified"]``, ``info["growth_rate"]``).
+    Reward (:class:`~gfb_env.envs.rewards.CommandedSpeedReward`): ``0.1 p`` per calm step with
+    ``p = clip((Lambda - Lambda_0) / (Lambda_cmd - Lambda_0), 0, 1)``, ``-0.5 min(A, 1.5)``, ``-100`` on
+    touchdown, and ``50 mean(p)`` over the window at a certified horizon.  Success: certified and the
+    window-mean Lambda >= (1 - 0.02) min(Lambda_cmd, lambda_best of the achievable actual damping).
+    Costs: ``info["cost"]`` (whirl > 0.15 C, film < 0.1 C, touchdown); constraint: episode cost <= 5.
+    The start damping command is drawn log-uniformly in the damping range (the plant's D_W is g times it).
+
     ## Version History
 
     * v0: initial version.
+    * v1 (issue 10): v0 on the instrumented machine.  Redefined in place by issue 11 (no benchmark result
+      had been published on v1): hidden damping gain in [0.316, 3.16], the observed speed command, the
+      remaining-time observation, the fixed horizon of 250 steps, the stability certificate, the
+      commanded-speed reward and the costs.
     """
 
     def __init__(
@@ -197,6 +219,8 @@ class RunUpEnv(CommandedSpeedMixin, GFBEnv):
             costs=CostSpec(cost_whirl_amplitude, cost_film_thickness, episode_cost_limit),
             v1_only=self._v1_only_arguments(command_fraction_range),
         )
+        if self.commanded is not None:  # one owner of the v1 tolerance
+            self.target_tolerance = self.commanded.target_tolerance
         self.reward = RunUpReward(
             progress_weight,
             time_penalty,

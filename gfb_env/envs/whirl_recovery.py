@@ -84,9 +84,24 @@ class WhirlRecoveryEnv(CommandedSpeedMixin, GFBEnv):
     speed_loss_weight=2, success_bonus=50, touchdown_penalty=200, **base)`` with the base arguments of
     :class:`~gfb_env.envs.base.GFBEnv` (grid, control_interval, ..., render_mode).
 
+    ## v1 (``gfb_env/WhirlRecovery-v1``, ``task_version=1``; ``docs/envs.md``)
+
+    The instrumented machine with the hidden damping gain g in [0.316, 3.16]; the start is v0's developed
+    whirl (Lambda_w = 1.03 lambda_best, actual D_W = d_opt, so the actuator's command is d_opt / g).  The
+    command is Lambda_w (observed: restore the speed as far as stably possible; it always lies above
+    lambda_best), the reference of the speed progress ``Lambda_ref = reference_fraction * lambda_best``
+    (0.85: 0.596, about Lambda_c of the worst damping, 0.590; with the optimum damping the whirl
+    collapses near 0.66).  Horizon 200 steps, certificate,
+    reward, success and costs as RunUp-v1 (success: the window-mean Lambda >= 0.98 lambda_best of the
+    achievable actual damping, certified); the constraint allows an episode cost of 15 (a recovery at
+    the motor limit whirls for ~10 steps).
+
     ## Version History
 
     * v0: initial version.
+    * v1 (issue 10): v0 on the instrumented machine.  Redefined in place by issue 11 (no benchmark result
+      had been published on v1): hidden damping gain, the observed command (Lambda_w) and remaining time,
+      the fixed horizon of 200 steps, the certificate, the commanded-speed reward and the costs.
     """
 
     def __init__(
@@ -103,7 +118,7 @@ class WhirlRecoveryEnv(CommandedSpeedMixin, GFBEnv):
         reference_fraction: float | None = None,
         cost_whirl_amplitude: float = 0.15,
         cost_film_thickness: float = 0.1,
-        episode_cost_limit: float = 5.0,
+        episode_cost_limit: float = 15.0,
         grid: str | Grid = DEFAULT_GRID,
         **kwargs,
     ):
@@ -144,8 +159,8 @@ class WhirlRecoveryEnv(CommandedSpeedMixin, GFBEnv):
             raise ValueError(
                 f"damping_range {self.damping_range} must contain the whirl damping {self.whirl_damping:.3g}"
             )
-        #: v1: the speed progress is zero at ``reference_fraction * lambda_best`` (default 0.85: below
-        #: the fold of the whirl cycles at every damping, the speed a safe recovery dips to)
+        #: v1: the speed progress is zero at ``reference_fraction * lambda_best`` (default 0.85: about
+        #: Lambda_c of the worst damping; a recovery with the optimum damping dips to ~0.66 only)
         self.reference_fraction = check_in(
             "reference_fraction",
             0.85 if reference_fraction is None else reference_fraction,

@@ -1,0 +1,323 @@
+"""The v1 task definitions (issue 11): the observed speed command and remaining time, the fixed horizon,
+the stability certificate of the actual plant, the reward terms, the costs, the hidden damping gain and
+the exact best stable operating point."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+import gfb_env.envs  # noqa: F401  (registers the ids)
+from gfb_env.analysis.stability import critical_bearing_number
+from gfb_env.envs import ENV_IDS, V1_DAMPING_GAIN_RANGE
+from gfb_env.envs.certify import StabilityCertificate, best_stable_operating_point
+from gfb_env.envs.commanded import CostSpec
+from gfb_env.envs.episode import StepOutcome
+from gfb_env.envs.run_up_randomized import COMMAND_RANGE_RPM
+from gfb_env.envs.units import SPEED_COMMAND, TIME_LEFT
+
+V1_IDS = tuple(i for i in ENV_IDS if i.endswith("-v1"))
+FAST = {"control_interval": 20.0}
+NO_SHOCKS = {"shock_arrivals": {"rate_per_s": 0.0}}
+
+
+@pytest.mark.parametrize("env_id", V1_IDS)
+def test_v1_observation_ends_with_the_command_and_the_time_left(env_id):
+    env = gym.make(env_id, **FAST)
+    u = env.unwrapped
+    lay = u.observation_layout
+    assert lay.names[-2:] == (SPEED_COMMAND, TIME_LEFT)
+    assert lay.index(SPEED_COMMAND) == lay.size - 2 and lay.index(TIME_LEFT) == lay.size - 1
+    assert env.observation_space.shape == (8 + u.n_pressure_probes + 2,)
+    assert (env.observation_space.low[-2:] == 0).all() and (env.observation_space.high[-2:] == 1).all()
+    obs, info = env.reset(seed=3)
+    assert obs in env.observation_space
+    assert lay.speed_command_rpm(obs) == pytest.approx(info["speed_command_rpm"], rel=1e-6)
+    assert lay.time_left(obs) == 1.0 and info["steps_left"] == u.commanded.episode_steps
+    obs, *_ = env.step(np.zeros(2, dtype=np.float32))
+    assert lay.time_left(obs) == pytest.approx(1.0 - 1.0 / u.commanded.episode_steps)
+    with pytest.raises(ValueError, match="no entry"):
+        lay.index("nonsense")
+
+
+@pytest.mark.parametrize("env_id", [i for i in ENV_IDS if i.endswith("-v0")])
+def test_v0_observation_is_unchanged(env_id):
+    lay = gym.make(env_id).unwrapped.observation_layout
+    assert lay.size == 16 and SPEED_COMMAND not in lay.names
+    assert lay.names[:8] == ("xi", "eta", "xi_dot", "eta_dot", "xi_extent", "eta_extent", "speed", "damping")
+
+
+def test_observe_parameters_come_before_the_command():
+    env = gym.make("gfb_env/RunUpRandomized-v1", observe_parameters=True, **FAST)
+    lay = env.unwrapped.observation_layout
+    assert lay.names[-5:] == ("clearance", "stiffness_factor", "load", SPEED_COMMAND, TIME_LEFT)
+    obs, info = env.reset(seed=0)
+    assert obs[lay.index("clearance")] == pytest.approx(info["clearance_um"] / 50.0, rel=1e-6)
+
+
+def test_the_commands_are_drawn_per_episode_in_their_ranges():
+    run_up = gym.make("gfb_env/RunUp-v1").unwrapped
+    best = run_up.constants["lambda_best"]
+    fr = []
+    for seed in range(30):
+        run_up.reset(seed=seed)
+        cmd = run_up.speed_command
+        fr.append(cmd.bearing_number / best)
+        assert cmd.reference_bearing_number == run_up.start_bearing_number
+    assert 0.93 <= min(fr) and max(fr) <= 1.03 and len(set(fr)) == 30
+    assert 0.2 < np.mean(np.array(fr) > 1.0) < 0.5  # 30 % expected above lambda_best
+    rnd = gym.make("gfb_env/RunUpRandomized-v1").unwrapped
+    rpms = []
+    for seed in range(5):
+        _, info = rnd.reset(seed=seed)
+        rpms.append(info["speed_command_rpm"])
+        assert rnd.speed_command.bearing_number == pytest.approx(rnd.bearing.bearing_number_at(rpms[-1]))
+    assert all(COMMAND_RANGE_RPM[0] <= r <= COMMAND_RANGE_RPM[1] for r in rpms) and len(set(rpms)) == 5
+    whirl = gym.make("gfb_env/WhirlRecovery-v1").unwrapped
+    whirl.reset(seed=0)
+    assert whirl.speed_command.bearing_number == whirl.whirl_bearing_number
+    assert whirl.speed_command.reference_bearing_number == pytest.approx(
+        0.85 * whirl.constants["lambda_best"]
+    )
+
+
+@pytest.mark.parametrize("env_id", V1_IDS)
+def test_every_v1_task_hides_the_damping_gain_and_its_horizon_is_the_time_limit(env_id):
+    env = gym.make(env_id)
+    u = env.unwrapped
+    assert u.damping_actuator.gain_range == pytest.approx(V1_DAMPING_GAIN_RANGE)
+    assert V1_DAMPING_GAIN_RANGE == pytest.approx((0.3162, 3.162), rel=1e-3)
+    assert env.spec.max_episode_steps == u.commanded.episode_steps
+    gains = set()
+    for seed in range(3):
+        _, info = env.reset(seed=seed)
+        gains.add(info["damping_gain"])
+        # the plant's D_W is g times the command the actuator reports
+        assert u._integ.foil_damping == pytest.approx(
+            u.episode.actuator.gain * u.episode.actuator.indicated_damping
+        )
+    assert len(gains) == 3
+    # the nominal optimum is commandable at both ends of the gain range
+    d_opt = gym.make("gfb_env/RunUp-v1").unwrapped.constants["d_opt"]
+    for g in V1_DAMPING_GAIN_RANGE:
+        assert 0.1 <= d_opt / g <= 10.0
+
+
+def test_whirl_recovery_v1_starts_on_the_whirl_at_the_optimum_actual_damping():
+    env = gym.make("gfb_env/WhirlRecovery-v1")
+    u = env.unwrapped
+    _, info = env.reset(seed=1)
+    assert info["foil_damping"] == pytest.approx(u.whirl_damping)
+    assert u.episode.actuator.indicated_damping == pytest.approx(u.whirl_damping / info["damping_gain"])
+    _, _, _, _, info = env.step(
+        np.array([0.0, u.action_from_damping(u.whirl_damping / info["damping_gain"])])
+    )
+    assert info["whirl_amplitude"] > 0.15 and info["cost_whirl"] == 1.0 and info["cost"] == 1.0
+
+
+@pytest.mark.parametrize("env_id", V1_IDS)
+def test_fixed_horizon_terminates_at_the_last_step(env_id):
+    steps = 4
+    env = gym.make(env_id, episode_steps=steps, hold_steps=2, **FAST)
+    env.reset(seed=0)
+    for k in range(1, steps + 1):
+        obs, r, term, trunc, info = env.step(np.zeros(2, dtype=np.float32))
+        if info["termination_reason"] in ("touchdown", "solver_failure"):
+            pytest.skip("the plant touched down before the horizon")
+        assert term is (k == steps)
+        assert info["steps_left"] == steps - k
+        assert env.unwrapped.observation_layout.time_left(obs) == pytest.approx((steps - k) / steps)
+    assert info["termination_reason"] in ("success", "horizon")
+    assert info["certification"] is not None
+    with pytest.raises(RuntimeError, match="ended"):
+        env.step(np.zeros(2, dtype=np.float32))
+
+
+@pytest.mark.parametrize("env_id", V1_IDS)
+def test_reward_terms_sum_to_the_reward_and_costs_are_consistent(env_id):
+    env = gym.make(env_id, episode_steps=12, hold_steps=3, **FAST)
+    env.reset(seed=2)
+    rng = np.random.default_rng(0)
+    total_cost = 0.0
+    while True:
+        _, r, term, trunc, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+        terms = {k: v for k, v in info.items() if k.startswith("reward_")}
+        assert set(terms) == {"reward_speed", "reward_whirl", "reward_certified_speed", "reward_touchdown"}
+        assert r == pytest.approx(sum(terms.values()), abs=1e-12)
+        assert info["cost"] == max(info["cost_whirl"], info["cost_film"], info["cost_touchdown"])
+        assert info["cost_whirl"] == float(info["whirl_amplitude"] > 0.15)
+        assert info["cost_film"] == float(info["min_film_thickness"] < 0.1)
+        total_cost += info["cost"]
+        assert info["episode_cost"] == total_cost
+        assert (info["reward_certified_speed"] > 0) <= info["certified"]
+        if term or trunc:
+            break
+
+
+def test_cost_spec_flags_each_violation():
+    cs = CostSpec()
+
+    def out(amp=0.01, h=0.4, td=False, fail=False):
+        return StepOutcome(0.5, 0.5, 1.0, amp, h, td, fail)
+
+    assert cs.terms(out()) == {"cost": 0.0, "cost_whirl": 0.0, "cost_film": 0.0, "cost_touchdown": 0.0}
+    assert cs.terms(out(amp=0.2))["cost_whirl"] == 1.0
+    assert cs.terms(out(h=0.05))["cost_film"] == 1.0
+    assert cs.terms(out(td=True))["cost"] == 1.0 and cs.terms(out(fail=True))["cost_touchdown"] == 1.0
+    with pytest.raises(ValueError, match="cost_whirl_amplitude"):
+        CostSpec(whirl_amplitude=-1.0)
+
+
+def _hold_at(env, factor: float, seed: int = 5, d_cmd: float = 1.0):
+    """Ramp to ``factor * Lambda_c(actual D_W)`` with the command ``d_cmd`` and hold to the horizon."""
+    u = env.unwrapped
+    _, info = env.reset(seed=seed)
+    g = info["damping_gain"]
+    lam_c = critical_bearing_number(
+        u.model, g * d_cmd, bearing_range=(0.4, 0.9), scan_step=0.02
+    ).critical_bearing_number
+    target = factor * lam_c
+    step = u.max_rate() * u.control_interval
+    amps = []
+    while True:
+        lam = u._integ.bearing_number
+        a = np.array([np.clip((target - lam) / step, -1, 1), u.action_from_damping(d_cmd)], dtype=np.float32)
+        _, _, term, trunc, info = env.step(a)
+        amps.append(info["whirl_amplitude"])
+        if term or trunc:
+            return info, amps, g, lam_c
+
+
+def test_holding_just_above_the_actual_critical_speed_is_not_certified():
+    """1.003 Lambda_c of the ACTUAL damping (g != 1): the window stays calm, the certificate refuses; at
+    0.99 Lambda_c it certifies."""
+    kw = {**NO_SHOCKS, "episode_steps": 80}
+    env = gym.make("gfb_env/RunUp-v1", **kw)
+    info, amps, g, lam_c = _hold_at(env, 1.003)
+    assert abs(math.log(g)) > 0.1  # a drawn gain far from 1: the nominal Lambda_c(D_cmd) would be wrong
+    assert info["bearing_number"] == pytest.approx(1.003 * lam_c, rel=1e-9)
+    assert max(amps[-env.unwrapped.hold_steps :]) < env.unwrapped.stable_amplitude  # a calm window...
+    assert info["certification"] == "unstable_equilibrium" and info["growth_rate"] > 0  # ...is not enough
+    assert not info["certified"] and not info["is_success"] and info["termination_reason"] == "horizon"
+    assert info["reward_certified_speed"] == 0.0
+    info, amps, g2, lam_c2 = _hold_at(env, 0.99)
+    assert (g2, lam_c2) == (g, lam_c)
+    assert info["certified"] and info["certification"] == "stable" and info["growth_rate"] < 0
+    assert info["reward_certified_speed"] > 0
+
+
+def test_a_whirl_in_the_window_is_not_certified():
+    cert = StabilityCertificate(stable_amplitude=0.05, hold_steps=3)
+    env = gym.make("gfb_env/RunUp-v1").unwrapped
+    env.reset(seed=0)
+    s = env._integ.state
+    c = cert.judge([0.01, 0.06, 0.01], env.model, 0.5, 1.0, s)
+    assert (c.certified, c.reason) == (False, "whirl_in_window")
+    assert cert.judge([0.01, 0.01], env.model, 0.5, 1.0, s).reason == "whirl_in_window"  # too short
+    c = cert.judge([0.01, 0.01, 0.01], env.model, 0.5, 1.0, s)
+    assert c.certified and c.growth_rate < 0
+
+
+def test_best_stable_operating_point_is_the_maximum_of_the_critical_curve():
+    env = gym.make("gfb_env/RunUpRandomized-v1").unwrapped
+    env.reset(seed=0, options={"clearance_m": 45e-6, "stiffness_factor": 1.2, "load_n": 18.0})
+    lam, d = best_stable_operating_point(env.model, (0.03, 30.0), 0.6)
+
+    def lam_c(dw: float) -> float:
+        return critical_bearing_number(
+            env.model, dw, bearing_range=(0.3, 1.2), scan_step=0.02
+        ).critical_bearing_number
+
+    assert lam_c(d) == pytest.approx(lam, abs=2e-4)
+    assert lam_c(d * 1.3) < lam - 1e-4 and lam_c(d / 1.3) < lam - 1e-4
+    # an achievable range that excludes the optimum: the best damping is its nearer end
+    lam_e, d_e = best_stable_operating_point(env.model, (0.03, d / 2), lam)
+    assert d_e == pytest.approx(d / 2) and lam_e == pytest.approx(lam_c(d / 2), abs=2e-4) and lam_e < lam
+
+
+def test_the_episode_best_point_respects_the_achievable_damping():
+    env = gym.make("gfb_env/RunUp-v1").unwrapped
+    env.reset(seed=0)
+    bp = env.best_stable_operating_point()
+    g = env.damping_gain
+    assert bp.commanded_damping == pytest.approx(bp.foil_damping / g)
+    assert bp.bearing_number == pytest.approx(env.constants["lambda_best"], abs=2e-4)
+    assert env.best_stable_operating_point() is bp  # cached for the episode
+
+
+def test_v0_refuses_the_v1_arguments():
+    with pytest.raises(ValueError, match="episode_steps"):
+        gym.make("gfb_env/RunUp-v0", episode_steps=10)
+    with pytest.raises(ValueError, match="task_version"):
+        gym.make("gfb_env/RunUp-v0", task_version=2)
+    with pytest.raises(ValueError, match="reference_fraction"):
+        gym.make("gfb_env/WhirlRecovery-v0", reference_fraction=0.9)
+    with pytest.raises(ValueError, match="hold_steps"):
+        gym.make("gfb_env/RunUp-v1", episode_steps=5)  # the window (10) must fit
+
+
+@pytest.mark.parametrize("env_id", V1_IDS)
+def test_same_seed_same_trajectory(env_id):
+    def run():
+        env = gym.make(env_id, episode_steps=15, **FAST)
+        obs, _ = env.reset(seed=11)
+        rng = np.random.default_rng(4)
+        out = [obs]
+        for _ in range(15):
+            obs, r, term, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+            out.append(np.r_[obs, r, info["cost"]])
+            if term:
+                break
+        return np.concatenate(out)
+
+    assert np.array_equal(run(), run())
+
+
+@pytest.mark.parametrize(
+    "env_id",
+    [
+        "gfb_env/RunUp-v1",
+        # each certified end below the command computes the drawn plant's exact optimum (~1 s)
+        pytest.param("gfb_env/RunUpRandomized-v1", marks=pytest.mark.slow),
+        "gfb_env/WhirlRecovery-v1",
+    ],
+)
+def test_vector_env_is_sync_bit_for_bit_across_the_horizon(env_id):
+    kw = {**FAST, "episode_steps": 3, "hold_steps": 2}
+    native = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **kw)
+    sync = gym.make_vec(
+        env_id,
+        num_envs=2,
+        vectorization_mode="sync",
+        vector_kwargs={"autoreset_mode": AutoresetMode.NEXT_STEP},
+        **kw,
+    )
+    rng = np.random.default_rng(3)
+    a_obs, _ = native.reset(seed=5)
+    b_obs, _ = sync.reset(seed=5)
+    assert np.array_equal(a_obs, b_obs)
+    for _ in range(7):  # two horizons and the autoresets
+        act = rng.uniform(-1, 1, (2, 2)).astype(np.float32)
+        ra, rb = native.step(act), sync.step(act)
+        for x, y in zip(ra[:4], rb[:4], strict=True):
+            assert np.array_equal(x, y)
+        for k in ("certified", "cost", "episode_cost", "steps_left"):
+            assert np.array_equal(ra[4][k], rb[4][k])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("env_id", V1_IDS)
+def test_random_actions_for_whole_episodes_never_give_nan(env_id):
+    env = gym.make(env_id)
+    for seed in range(2):
+        obs, _ = env.reset(seed=seed)
+        env.action_space.seed(seed)
+        while True:
+            obs, r, term, trunc, info = env.step(env.action_space.sample())
+            assert np.isfinite(obs).all() and math.isfinite(r) and obs in env.observation_space
+            if term or trunc:
+                break

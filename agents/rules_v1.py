@@ -1053,6 +1053,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", nargs=2, type=int, default=(0, 50), metavar=("FIRST", "STOP"))
     ap.add_argument("--safe-growth-rate", type=float, default=None)
     ap.add_argument("--rows", action="store_true", help="print every episode")
+    ap.add_argument("--out", default=None, help="write the summary and the rows to this JSON file")
     args = ap.parse_args(argv)
     if not 0 <= args.seeds[0] < args.seeds[1] <= 10_000:
         print("--seeds: training/validation seeds only, 0 <= FIRST < STOP <= 10000", flush=True)
@@ -1062,11 +1063,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.rows:
         for x in rows:
             print(json.dumps(x))
-    print(
-        json.dumps(
-            {"env": args.env, "rule": args.rule, "seeds": list(args.seeds), **kw, **summarise_rows(rows)}
-        )
-    )
+    summary = {"env": args.env, "rule": args.rule, "seeds": list(args.seeds), **kw, **summarise_rows(rows)}
+    print(json.dumps(summary))
+    if args.out:
+        from pathlib import Path
+
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(json.dumps({"summary": summary, "rows": rows}, indent=1) + "\n")
     return 0
 
 

@@ -6,8 +6,8 @@ unbalance, and (after the "v1 interface" of issue 11) command an operating speed
 reach if it is stable, else end as close below the actual stability boundary as it dares.  A rule here
 reads only the observation, the env's documented configuration (nominal bearing, grid, ranges, actuator
 ``gain_range``, sensor noise levels) and the project's own model and analysis code.  Never the episode,
-the drawn parameters or the simulator state (the one exception, until the v1 interface lands, is
-:func:`speed_command_bearing_number`, marked as such).
+the drawn parameters or the simulator state; the command and the time left come from the observation's
+named entries ``speed_command`` and ``time_left``.
 
 Rules (:func:`make_rule` builds them by name, :data:`RULE_NAMES`):
 
@@ -17,24 +17,26 @@ Rules (:func:`make_rule` builds them by name, :data:`RULE_NAMES`):
   Lambda_c(d_opt))``.
 * ``identify_map_v1``: identify the bearing (:func:`identify_bearing`), then the published table's
   ``d_opt`` and ``0.95 lambda_best`` of the estimate, capped at the command (``g = 1`` assumed).
-* ``margin_search`` (the main rule): identify the bearing (randomised task), compute the growth rate of
-  the whirl mode ``sigma(Lambda, D_W)`` of the identified plant on a grid (:class:`StabilityTable`), keep
-  a posterior over ``g`` (:class:`GainPosterior`, the documented prior), measure the decay of the whirl
-  mode after every shock from the orbit envelope (:class:`DecayMeter`; calibrated against the linear
-  rate on training seeds) and after a whirl onset (evidence of instability), and run at the damping and
-  speed that maximise the expected certified progress under the posterior
-  (:func:`choose_operating_point`); a growing envelope backs the speed off below the fold and returns
-  lower.
-* ``recovery`` (WhirlRecovery-v1): decelerate at the motor limit until the whirl envelope falls below a
-  threshold, at the damping that is optimal for the estimated ``g``, then return to the operating point
-  of ``margin_search``.
+* ``margin_search`` (the main rule): identify the bearing (randomised task: :func:`identify_bearing` at
+  the start speed, then :func:`refine_bearing` along the run-up with the sensor biases eliminated),
+  compute the growth rate of the whirl mode ``sigma(Lambda, D_W)`` of the identified plant on a grid
+  (:class:`StabilityTable`), keep a posterior over ``g`` (:class:`GainPosterior`, the documented prior),
+  fed by the unbalance probe at the start speed (:class:`UnbalanceProbe`: the 1x orbit demodulated at
+  three commanded dampings), the decay of the whirl mode after every shock (:class:`DecayMeter`) and
+  whirl onsets (evidence of instability), and run at the damping and speed that maximise the expected
+  certified progress under the posterior (:func:`choose_operating_point`); a growing envelope backs the
+  speed off below the fold and caps the set-point lower.
+* ``recovery`` (WhirlRecovery-v1): decelerate at the motor limit while the orbit envelope exceeds 0.15 C,
+  at the damping that is optimal for the estimated ``g``, then return to the operating point of
+  ``margin_search``.
 
-Why the decay after shocks: the static equilibrium does not depend on ``D_W``, a speed ramp moves it by
-~1e-4 C per control step (far below the probe noise floor of ~0.035 C in the envelope), and the 1x
-unbalance orbit changes by only 10-30 % over the whole damping range, so the only measurable signature
-of the actual damping is the decay rate of the whirl mode after a shock (0.3-1.8 C envelopes, then a
-decay of ``exp(60 sigma)`` per control step: ``sigma`` from -0.025/tau at the optimum to 0 at
-``Lambda_c``).  Measured: see ``docs/agents.md``.
+Where the actual damping shows: the static equilibrium does not depend on ``D_W`` and a speed ramp
+moves it by ~1e-4 C per control step (far below the envelope's noise floor of ~0.035 C), so no speed or
+damping step excites the whirl mode visibly.  Two signatures remain: the synchronous (1x) orbit of the
+residual unbalance, whose size and phase change with the actual damping (on the nominal bearing at
+Lambda = 0.45 ``|xi|`` halves from D_W = 0.1 to 3, the phase of ``eta`` turns by ~50 deg), and the decay
+of the whirl mode after a shock (0.3-1.8 C envelopes decaying by ``exp(60 sigma)`` per control step).
+Measured: ``docs/agents.md``.
 """
 
 from __future__ import annotations
@@ -1041,6 +1043,51 @@ def summarise_rows(rows: list[dict]) -> dict:
     }
 
 
+def identification_accuracy(seeds: range, ramp_steps: int = 28) -> dict:
+    """Relative errors of :func:`identify_bearing` (6 observations at the start speed) and of
+    :func:`refine_bearing` (plus ``ramp_steps`` observations of a full-rate run-up in 4-step averages)
+    on RunUpRandomized-v1 draws, and of the published table's ``lambda_best`` at each estimate."""
+    import gymnasium as gym
+
+    import gfb_env.envs  # noqa: F401
+
+    env = gym.make("gfb_env/RunUpRandomized-v1")
+    u = env.unwrapped
+    lay = u.observation_layout
+    idf = BearingIdentifier(u)
+    errs: dict[str, list] = {"start": [], "refined": []}
+    for seed in seeds:
+        obs, info = env.reset(seed=seed)
+        start = [obs]
+        for _ in range(5):
+            obs, *_ = env.step(np.zeros(2, dtype=np.float32))
+            start.append(obs)
+        est0 = identify_bearing(idf, start)
+        ramp = []
+        for _ in range(ramp_steps):
+            obs, *_ = env.step(np.array([1.0, 0.0], dtype=np.float32))
+            ramp.append(obs)
+        pts = [(lay.speed_rpm(start[0]), np.mean(start, axis=0), len(start))]
+        for j in range(0, ramp_steps, 4):
+            grp = ramp[j : j + 4]
+            pts.append((float(np.mean([lay.speed_rpm(o) for o in grp])), np.mean(grp, axis=0), len(grp)))
+        est1 = refine_bearing(idf, pts, est0)
+        true = np.array([info["clearance_um"] * 1e-6, info["stiffness_factor"], info["load_n"]])
+        lb_true = u.table(*true)["lambda_best"]
+        for key, est in (("start", est0), ("refined", est1)):
+            p = np.array([est.clearance_m, est.stiffness_factor, est.load_n])
+            errs[key].append(np.r_[p / true - 1, u.table(*p)["lambda_best"] / lb_true - 1])
+    env.close()
+    out = {}
+    for key, e in errs.items():
+        e = np.array(e)
+        out[key] = {
+            name: {"rms": float(np.sqrt(np.mean(e[:, i] ** 2))), "max_abs": float(np.abs(e[:, i]).max())}
+            for i, name in enumerate(("clearance", "stiffness_factor", "load", "lambda_best_table"))
+        }
+    return {"draws": len(seeds), **out}
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m gfb_agents.rules_v1 --env gfb_env/RunUp-v1 --rule margin_search --seeds 0 50``:
     measure a rule on training seeds (< 10000; the benchmark's test seeds are refused)."""
@@ -1048,8 +1095,11 @@ def main(argv: list[str] | None = None) -> int:
     import json
 
     ap = argparse.ArgumentParser(description=main.__doc__)
-    ap.add_argument("--env", required=True)
-    ap.add_argument("--rule", required=True, choices=RULE_NAMES)
+    ap.add_argument("--env")
+    ap.add_argument("--rule", choices=RULE_NAMES)
+    ap.add_argument(
+        "--identify", action="store_true", help="measure the identification on RunUpRandomized-v1 draws"
+    )
     ap.add_argument("--seeds", nargs=2, type=int, default=(0, 50), metavar=("FIRST", "STOP"))
     ap.add_argument("--safe-growth-rate", type=float, default=None)
     ap.add_argument("--rows", action="store_true", help="print every episode")
@@ -1057,6 +1107,18 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if not 0 <= args.seeds[0] < args.seeds[1] <= 10_000:
         print("--seeds: training/validation seeds only, 0 <= FIRST < STOP <= 10000", flush=True)
+        return 2
+    if args.identify:
+        res = identification_accuracy(range(*args.seeds))
+        print(json.dumps(res))
+        if args.out:
+            from pathlib import Path
+
+            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.out).write_text(json.dumps(res, indent=1) + "\n")
+        return 0
+    if not (args.env and args.rule):
+        print("--env and --rule are required (or --identify)", flush=True)
         return 2
     kw = {} if args.safe_growth_rate is None else {"safe_growth_rate": args.safe_growth_rate}
     rows = evaluate_rule(args.env, args.rule, range(*args.seeds), **kw)

@@ -157,3 +157,11 @@ def test_make_rule_names():
     with pytest.raises(ValueError, match="unknown rule"):
         make_rule("nope", env)
     env.close()
+
+
+def test_cli_refuses_test_seeds_and_missing_arguments(capsys):
+    from gfb_agents.rules_v1 import main
+
+    assert main(["--env", "gfb_env/RunUp-v1", "--rule", "naive", "--seeds", "10000", "10002"]) == 2
+    assert "training/validation seeds only" in capsys.readouterr().out
+    assert main(["--seeds", "0", "1"]) == 2

@@ -73,30 +73,21 @@ RULE_NAMES = ("naive", "map_informed_v1", "identify_map_v1", "margin_search", "r
 
 
 # ----------------------------------------------------------------------------------------------
-# the task's command (one place to change when the v1 interface lands)
+# the task's command
 class CommandSource:
-    """Reads the commanded operating speed of a v1 task.
-
-    From the observation entry ``speed_command`` when the env's layout names one (the v1 interface);
-    until then from ``env.unwrapped.episode.task.target_bearing_number`` (NOT an honest read: a
-    stand-in for the observation entry, the only one in this module).  Returns the speed in rpm."""
+    """Reads the commanded operating speed (rpm) of a v1 task from the observation's named entry
+    ``speed_command``; None on a task without one (v0: the rules then run to their own set-point)."""
 
     def __init__(self, env):
         u = getattr(env, "unwrapped", env)
         layout = u.observation_layout
         self._index = layout.index("speed_command") if _layout_has(layout, "speed_command") else None
         self._scale = float(layout.speed_scale_rpm)
-        self._env = None if self._index is not None else u
 
     def rpm(self, obs: np.ndarray) -> float | None:
-        if self._index is not None:
-            return float(obs[self._index]) * self._scale
-        try:
-            task = self._env.episode.task
-            lam = float(task.target_bearing_number)
-            return float(self._env.episode.bearing.speed_rpm_at(lam))
-        except (AttributeError, RuntimeError):
+        if self._index is None:
             return None
+        return float(obs[self._index]) * self._scale
 
 
 def _layout_has(layout, name: str) -> bool:
@@ -639,7 +630,7 @@ class MarginSearchAgent(_V1Rule):
         rel_sd: float | None = None,
         fail_cost: float = 0.3,
         backoff: float = 0.08,
-        safe_growth_rate: float = -0.002,
+        safe_growth_rate: float = -0.001,
         probe_points: int = 2,
         probe_factor: float = 1.6,
         unbalance_dampings: tuple[float, ...] = (0.3, 1.5, 7.0),
@@ -666,6 +657,7 @@ class MarginSearchAgent(_V1Rule):
         # after the bias-free re-identification along the run-up (refine_bearing): ~1.9 % rms (seeds 0-7)
         self.rel_sd_refined = 0.02
         self.refine_points = 28
+        self.skip_probe_value = 0.995
         self.fail_cost, self.backoff = float(fail_cost), float(backoff)
         self.safe_growth_rate = float(safe_growth_rate)
         self.probe_points, self.probe_factor = int(probe_points), float(probe_factor)
@@ -754,6 +746,17 @@ class MarginSearchAgent(_V1Rule):
         if self.reference_bearing_number is not None and not self.randomized:
             m["lam_ref"] = float(self.reference_bearing_number)
         m["mode"] = "probe" if (self.unbalance_dampings and len(m["post"].gains) > 1) else "run"
+        if m["mode"] == "probe":
+            # the probe costs ~48 steps at the start speed: skip it when the prior alone already puts the
+            # command below the boundary for every plausible gain (value ~1: full progress, no risk)
+            self._decide(m, obs)
+            if self.last["value"] >= self.skip_probe_value:
+                m["mode"] = "run"
+            else:
+                # at the start speed: tried at the highest speed where every plausible plant decays at
+                # >= 0.012/tau (Lambda 0.51 on RunUp-v1, seeds 0-7), the gain came out less accurate
+                # (log errors up to 0.57 against 0.44) for ~1 point of speed reward
+                m["probe_rpm"] = rpm
 
     # -- the unbalance probe at the start speed -------------------------------------------------
     def _probe_plan(self, obs: np.ndarray) -> list[float]:
@@ -763,14 +766,21 @@ class MarginSearchAgent(_V1Rule):
         ds = sorted(self.unbalance_dampings)
         return ds if abs(math.log(ds[0] / ind)) <= abs(math.log(ds[-1] / ind)) else ds[::-1]
 
-    def _probe_step(self, obs: np.ndarray, m: dict) -> float | None:
-        """One step of the probe: the damping to command, or None when it is done (posterior updated)."""
+    def _probe_step(self, obs: np.ndarray, rpm: float, m: dict) -> tuple[float, float] | None:
+        """One step of the probe: ``(speed action, damping)``, or None when it is done (posterior
+        updated).  First the run-up to the probe speed (at the first probe damping), then the segments."""
         if "probe" not in m:
             m["probe"] = {"plan": self._probe_plan(obs), "j": 0, "settle": 0, "n": 0, "quiet": 0}
             m["unb"] = UnbalanceProbe(self.n_probes)
             m["meter"].floor = m["meter"].floor or self.spec.observations.envelope(obs)
         pr = m["probe"]
         d = pr["plan"][pr["j"]]
+        target = m.get("probe_rpm", rpm)
+        if abs(rpm - target) > 1e-6 * target:  # not there yet: no sample (the speed must be constant)
+            pr["settle"] = 0
+            if self.randomized and rpm > 1.01 * self.start_speed_rpm:
+                m["ramp_obs"].append((rpm, np.asarray(obs, dtype=float)))
+            return self.track(m, rpm, target), d
         ind = self.spec.actions.damping_from_action(float(obs[self.spec.observations.damping]))
         env_ = self.spec.observations.envelope(obs)
         floor = m["meter"].floor or env_
@@ -789,10 +799,10 @@ class MarginSearchAgent(_V1Rule):
                     self._finish_probe(m)
                     return None
                 d = pr["plan"][pr["j"]]
-        if m["k"] > 90:  # never spend more than ~a third of the episode on it
+        if m["k"] > 110:  # never spend more than ~half the episode on it
             self._finish_probe(m)
             return None
-        return d
+        return self.track(m, rpm, target), d
 
     def _finish_probe(self, m: dict) -> None:
         unb: UnbalanceProbe = m["unb"]
@@ -800,7 +810,7 @@ class MarginSearchAgent(_V1Rule):
         unb.segments = segs
         if len(segs) >= 2:
             b, model = m["bearing"], m["model"]
-            lam = b.bearing_number_at(self.start_speed_rpm) if self.start_speed_rpm else m["lam_ref"]
+            lam = b.bearing_number_at(m.get("probe_rpm", self.start_speed_rpm))
             s0 = find_equilibrium(model, lam)
             post: GainPosterior = m["post"]
             ds = np.array([sg["d"] for sg in segs])
@@ -834,8 +844,10 @@ class MarginSearchAgent(_V1Rule):
         n = len(m["ramp_obs"])
         near = m["setpoint"] is not None and rpm >= 0.97 * m["setpoint"]
         if n >= self.refine_points or (near and n >= self.refine_points // 2):
-            start_obs = m["obs"] + m["start_obs"]
-            pts = [(start, np.mean(start_obs, axis=0), len(start_obs))]
+            pts = [(start, np.mean(m["obs"], axis=0), len(m["obs"]))]
+            if m["start_obs"]:  # the probe's observations at its constant speed
+                pr = m["probe_rpm"]
+                pts.append((pr, np.mean(m["start_obs"], axis=0), len(m["start_obs"])))
             for j in range(0, n, 4):
                 grp = m["ramp_obs"][j : j + 4]
                 pts.append(
@@ -856,18 +868,18 @@ class MarginSearchAgent(_V1Rule):
             self._init_plant(m, obs, rpm)
         elif m["mode"] == "init":
             self._init_plant(m, obs, rpm)
-        if m["mode"] == "probe" and self.randomized:
-            m["start_obs"].append(np.asarray(obs, dtype=float))
+        if m["mode"] == "probe" and self.randomized and abs(rpm - m.get("probe_rpm", rpm)) <= 1e-6 * rpm:
+            m["start_obs"].append(np.asarray(obs, dtype=float))  # the probe's static observations
         if m["mode"] == "probe":
             # the floor follows the envelope (the 1x orbit changes with the damping); shocks are measured
             for rate, lam_ev, d_ev, _n in m["meter"].update(
                 self.spec.observations.envelope(obs), self._lam(m, rpm), m["d_prev"] or m["d_cmd"]
             ):
                 m["post"].add_decay(m["table"], lam_ev, d_ev, rate)
-            d = self._probe_step(obs, m)
-            if d is not None:
-                m["d_prev"] = d
-                return [0.0, self.spec.damping_action(d)]
+            act = self._probe_step(obs, rpm, m)
+            if act is not None:
+                m["d_prev"] = act[1]
+                return [act[0], self.spec.damping_action(act[1])]
         lam = self._lam(m, rpm)
         env_ = self.spec.observations.envelope(obs)
         meter: DecayMeter = m["meter"]
@@ -935,6 +947,9 @@ class RecoveryAgent(MarginSearchAgent):
     indicated value lies inside the action scale (a property of the task, reported in issue 11)."""
 
     def __init__(self, env, threshold: float = 0.15, name: str = "recovery", **kw):
+        # the gain is known from the reset observation, so the hold may sit where the mode just decays
+        # (safe_growth_rate 0 beat -0.001 and -0.002 on validation seeds 50-79: 41.8 / 39.4 / 39.2)
+        kw.setdefault("safe_growth_rate", 0.0)
         super().__init__(env, name=name, **kw)
         u = getattr(env, "unwrapped", env)
         self.start_damping = float(getattr(u, "whirl_damping", self.nmap.d_opt))

@@ -223,7 +223,7 @@ def choose_operating_point(
     damping_range: tuple[float, float],
     rel_sd: float = 0.005,
     fail_cost: float = 0.3,
-    n_damping: int = 25,
+    n_damping: int = 49,
     n_lambda: int = 200,
     level: float = 0.0,
 ) -> tuple[float, float, float]:
@@ -895,7 +895,15 @@ class MarginSearchAgent(_V1Rule):
         if meter.event is not None and m["mode"] == "run" and len(m["post"].gains) > 1:
             if meter.points >= self.probe_points and m.get("probe_d") is None:
                 f = self.probe_factor if m["d_cmd"] <= self.nmap.d_opt else 1.0 / self.probe_factor
-                m["probe_d"] = m["d_cmd"] * f
+                d_sw = m["d_cmd"] * f
+                post: GainPosterior = m["post"]
+                w = post.weights
+                lg = np.log(post.gains)
+                spread = float(np.sqrt(w @ (lg - w @ lg) ** 2))
+                # only where it is informative and safe: near the boundary a switched damping can make
+                # the plant unstable (seen on WhirlRecovery-v1: a x1.6 switch at 0.985 lambda_best whirled)
+                risk = float(w @ (m["table"].growth_rate(lam, post.gains * d_sw) > -0.004))
+                m["probe_d"] = d_sw if (spread > 0.1 and risk < 0.02) else m["d_cmd"]
         elif meter.event is None and m.get("probe_d") is not None:
             m["probe_d"] = None
         # whirl guard: an envelope above the floor that grows in 3 consecutive steps (a shock's transient

@@ -167,6 +167,7 @@ def main(argv: list[str] | None = None) -> None:
         "--command-draws", type=int, default=0, help="only the RunUpRandomized-v1 command statistics"
     )
     p.add_argument("--step-cost", action="store_true", help="only the wall time per step, v1 against v0")
+    p.add_argument("--no-shocks", action="store_true", help="the tasks without base shocks (an ablation)")
     a = p.parse_args(argv)
     if a.step_cost:
         stats = step_cost()
@@ -184,9 +185,9 @@ def main(argv: list[str] | None = None) -> None:
     seeds = parse_seeds(a.seeds)
     if min(seeds) < 0 or max(seeds) > 99:
         p.error("--seeds: only training seeds 0-99")
-    out: dict = {"seeds": a.seeds, "tasks": {}}
+    out: dict = {"seeds": a.seeds, "shocks": not a.no_shocks, "tasks": {}}
     for env_id in a.tasks.split(","):
-        env = gym.make(env_id)
+        env = gym.make(env_id, **({"shock_arrivals": {"rate_per_s": 0.0}} if a.no_shocks else {}))
         res: dict = {}
         if a.margins:
             for m in (float(x) for x in a.margins.split(",")):

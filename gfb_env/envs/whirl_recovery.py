@@ -215,6 +215,10 @@ class WhirlRecoveryEnv(CommandedSpeedMixin, GFBEnv):
     def _best_bearing_number_guess(self) -> float:
         return float(self.constants["lambda_best"])
 
+    def _best_point_is_cached(self) -> bool:
+        """The nominal plant is fixed: its optimum, computed once per process, serves every episode."""
+        return True
+
     def _unconstrained_best_point(self) -> tuple[float, float]:
         """The nominal plant is fixed: its optimum is computed once per process (~0.3 s)."""
         model = self.episode.model

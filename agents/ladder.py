@@ -29,8 +29,9 @@ on the same test seeds and the statistics stratify by run.
 
 The built-in ladder (:func:`default_ladder`): on every task the naive ramp (:class:`NaiveRampAgent`), the
 scripted rules of :mod:`gfb_agents.scripted` and ``identify_map`` of :mod:`gfb_agents.identify` as rules,
-:class:`~gfb_agents.identify.OracleAgent` as the oracle (on the v1 tasks a *placeholder* until the v1
-oracle of ``gfb_agents.oracle`` is registered), and the committed learned policies of their task.
+:class:`~gfb_agents.identify.OracleAgent` as the oracle of the v0 tasks and
+:class:`~gfb_agents.oracle.CommandedOracle` (``oracle_v1``) of the v1 tasks, and the committed learned
+policies of their task.
 """
 
 from __future__ import annotations
@@ -202,6 +203,20 @@ def make_identify_map(env) -> Policy:
     return IdentifyingAgent(env)
 
 
+def make_v1_rule(name: str, env) -> Policy:
+    """The v1 rule ``name`` of :func:`gfb_agents.rules_v1.make_rule`."""
+    from gfb_agents.rules_v1 import make_rule
+
+    return make_rule(name, env)
+
+
+def make_commanded_oracle(env) -> Policy:
+    """The v1 tasks' oracle (:class:`gfb_agents.oracle.CommandedOracle`)."""
+    from gfb_agents.oracle import CommandedOracle
+
+    return CommandedOracle(env)
+
+
 def make_schedule_oracle(env) -> Policy:
     from gfb_agents.identify import OracleAgent
 
@@ -221,6 +236,19 @@ _V0_RULES = (
     ("map_informed", "d_opt of the nominal map, motor limit, hold at 0.95 Lambda_c(d_opt)"),
     ("feedback", "map_informed plus whirl detection, back-off and return"),
     ("damping_search", "probe the whirl onset at three dampings, run at the best"),
+)
+
+_RU1, _RUR1, _WR1 = "gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1"
+#: the v1 rules (``docs/agents.md``) and the tasks each was written for
+_V1_RULES = (
+    ("map_informed_v1", (_RU1, _RUR1, _WR1), "nominal map with g = 1: d_opt, hold at 0.95 Lambda_c"),
+    ("identify_map_v1", (_RUR1,), "fit the drawn bearing, its table's d_opt and 0.95 lambda_best, g = 1"),
+    (
+        "margin_search",
+        (_RU1, _RUR1),
+        "identify, estimate g (unbalance probe, shock decays), best expected hold",
+    ),
+    ("recovery", (_WR1,), "decelerate out of the whirl, estimate g, return below the estimated boundary"),
 )
 
 
@@ -284,22 +312,36 @@ def default_ladder() -> dict[str, AgentEntry]:
     out = [
         AgentEntry("naive", "naive", all_tasks, make_naive, description="D_W = 1, motor limit, hold"),
     ]
+    # the v0 rules fly the v0 targets (they read no speed command): v0 only; the v1 tasks have their own
+    # rules (gfb_agents.rules_v1)
     for name, desc in _V0_RULES:
         out.append(
-            AgentEntry(name, "rule", all_tasks, functools.partial(make_scripted, name), description=desc)
+            AgentEntry(name, "rule", V0_TASKS, functools.partial(make_scripted, name), description=desc)
         )
     out.append(
         AgentEntry(
-            "identify_map", "rule", all_tasks, make_identify_map, description="fit the bearing, fly the table"
+            "identify_map", "rule", V0_TASKS, make_identify_map, description="fit the bearing, fly the table"
+        )
+    )
+    # the v1 rules (gfb_agents.rules_v1): each on the tasks it was written for
+    for name, tasks, desc in _V1_RULES:
+        out.append(AgentEntry(name, "rule", tasks, functools.partial(make_v1_rule, name), description=desc))
+    out.append(
+        AgentEntry(
+            "oracle",
+            "oracle",
+            V0_TASKS,
+            make_schedule_oracle,
+            description="identify_map's schedule on the true draw",
         )
     )
     out.append(
         AgentEntry(
+            "oracle_v1",
             "oracle",
-            "oracle",
-            all_tasks,
-            make_schedule_oracle,
-            description="identify_map's schedule on the true draw (v1: placeholder for gfb_agents.oracle)",
+            V1_TASKS,
+            make_commanded_oracle,
+            description="knows g, the bearing and the exact lambda_best: D_opt/g, 1 % below min(cmd, best)",
         )
     )
     try:

@@ -1,4 +1,4 @@
-"""The oracle of the v1 (commanded-speed) tasks, and the naive baseline they are measured against.
+"""The oracle of the v1 (commanded-speed) tasks (1 on the benchmark's normalised scale).
 
 :class:`CommandedOracle` (``oracle_v1``) is NOT an honest rule: it knows every hidden parameter of the
 episode, read through the env's public per-episode accessors (never from the observation):
@@ -16,12 +16,10 @@ command ``D_opt / g``) and the true speed.  It does not know future shocks.  Its
 
 ``margin`` (and ``collapse_amplitude``) are tuned on the training seeds 0-99 only (``docs/envs.md``).
 
-:class:`CommandedRamp` (``naive_v1``) is the paper's constant-damping schedule on the commanded task:
-commanded ``D_W = 1``, ramp at the motor limit to ``min(n_cmd, 0.95 n_c(D_W = 1))`` of the *nominal*
-bearing (from the env's documented constants), hold.  It reads only the observation (the command, the
-speed) and the documented configuration.
+The naive baseline (0 on that scale) is :class:`gfb_agents.ladder.NaiveRampAgent` (``naive``), the same
+agent on every task.
 
-Both follow the agents' interface (:class:`gfb_agents.scripted.Policy`: ``reset()``, ``predict(obs,
+It follows the agents' interface (:class:`gfb_agents.scripted.Policy`: ``reset()``, ``predict(obs,
 ...)``; the oracle takes the episode through ``observe_reset_info`` like
 :class:`gfb_agents.identify.OracleAgent`), and also offer ``reset(env, obs, info)`` / ``act(obs)``.
 One env at a time.
@@ -35,7 +33,7 @@ import numpy as np
 
 from gfb_agents.scripted import Policy
 
-__all__ = ["CommandedOracle", "CommandedRamp", "ORACLE_MARGIN", "ORACLE_COLLAPSE_AMPLITUDE"]
+__all__ = ["CommandedOracle", "ORACLE_MARGIN", "ORACLE_COLLAPSE_AMPLITUDE"]
 
 #: the oracle's relative margin below lambda_best (tuned on training seeds 0-99, ``docs/envs.md``)
 ORACLE_MARGIN = {
@@ -137,28 +135,3 @@ class CommandedOracle(_OneEnvPolicy):
                 return np.array([-1.0, self.damping_action])
             self.recovering = False
         return np.array([self._track(self.setpoint), self.damping_action])
-
-
-class CommandedRamp(_OneEnvPolicy):
-    """``naive_v1``: the paper's constant-damping ramp on the commanded task (module docstring)."""
-
-    kind = "naive"
-
-    def __init__(self, env: Any, damping: float = 1.0, fraction: float = 0.95, name: str = "naive_v1"):
-        super().__init__(env, name)
-        u = self.u
-        c = u.constants
-        lam_c = float(np.interp(np.log(damping), np.log(c["curve_d"]), c["curve_lambda_c"]))
-        nb = u.nominal_bearing
-        self.limit_rpm = fraction * nb.speed_rpm_at(lam_c)
-        self.damping_action = u.action_from_damping(damping)
-        self.rpm_per_step = u.actions.rpm_per_step(nb, u.control_interval)
-
-    def _plan(self) -> None:
-        pass
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        lay = self.u.observation_layout
-        target = min(lay.speed_command_rpm(obs), self.limit_rpm)
-        a0 = float(np.clip((target - lay.speed_rpm(obs)) / self.rpm_per_step, -1.0, 1.0))
-        return np.array([a0, self.damping_action])

@@ -11,8 +11,9 @@ named entries ``speed_command`` and ``time_left``.
 
 Rules (:func:`make_rule` builds them by name, :data:`RULE_NAMES`):
 
-* ``naive``: the paper's constant damping: commanded ``D_W = 1``, ramp at the motor limit to
-  ``min(command, 0.95 Lambda_c(D_W = 1))`` of the nominal bearing, hold.
+* ``naive``: the benchmark's naive agent (:class:`gfb_agents.ladder.NaiveRampAgent`: commanded
+  ``D_W = 1``, ramp at the motor limit to ``min(command, 0.95 Lambda_c(D_W = 1))`` of the nominal
+  bearing, hold), for the CLI's comparisons.
 * ``map_informed_v1``: the nominal map with ``g = 1``: ``d_opt``, hold at ``min(command, 0.95
   Lambda_c(d_opt))``.
 * ``identify_map_v1``: identify the bearing (:func:`identify_bearing`), then the published table's
@@ -61,7 +62,6 @@ __all__ = [
     "DecayMeter",
     "identify_bearing",
     "choose_operating_point",
-    "NaiveAgent",
     "CommandCappedAgent",
     "MarginSearchAgent",
     "RecoveryAgent",
@@ -572,21 +572,6 @@ class _V1Rule(ScriptedPolicy):
         return self.episode_steps - m["k"]
 
 
-class NaiveAgent(_V1Rule):
-    """``naive``: commanded ``D_W = 1`` (the paper's constant damping), ramp at the motor limit to
-    ``min(command, 0.95 Lambda_c(D_W = 1))`` of the nominal bearing, hold."""
-
-    def __init__(self, env, damping: float = 1.0, margin: float = 0.05, name: str = "naive", **kw):
-        super().__init__(name, env, **kw)
-        self.damping = float(damping)
-        self.map_rpm = self.nmap.rpm((1 - margin) * self.nmap.critical_at(self.damping))
-
-    def _act(self, obs, rpm, m):
-        cmd = self.command_rpm(obs, m)
-        sp = self.map_rpm if cmd is None else min(cmd, self.map_rpm)
-        return [self.track(m, rpm, sp), self.spec.damping_action(self.damping)]
-
-
 class CommandCappedAgent(_V1Rule):
     """An older rule's schedule with the set-point capped at the task's command (the v1 reward gives
     nothing above it): ``map_informed_v1`` (nominal map, g = 1) and ``identify_map_v1``."""
@@ -957,17 +942,12 @@ class RecoveryAgent(MarginSearchAgent):
     ``threshold`` (the whirl collapses below the fold), at the damping that is optimal for the estimated
     gain, then return to the operating point of ``margin_search`` (posterior over ``g``).
 
-    The start damping of WhirlRecovery is documented (the developed whirl at ``D_W = d_opt``), and the
-    observation shows the actuator's indicated damping ``D_W / g``: so ``g`` is read at reset when the
-    indicated value lies inside the action scale (a property of the task, reported in issue 11)."""
+    The gain is learnt as in ``margin_search`` (prior, then the decays after shocks).  (A first version of
+    WhirlRecovery-v1 started at actual ``D_W = d_opt`` and showed ``d_opt / g`` as the indicated damping, so
+    this rule read ``g`` at reset; the task now starts with ``d_opt`` commanded and that leak is gone.)"""
 
     def __init__(self, env, threshold: float = 0.15, name: str = "recovery", **kw):
-        # the gain is known from the reset observation, so the hold may sit where the mode just decays
-        # (safe_growth_rate 0 beat -0.001 and -0.002 on training seeds 50-79: 41.8 / 39.4 / 39.2)
-        kw.setdefault("safe_growth_rate", 0.0)
         super().__init__(env, name=name, **kw)
-        u = getattr(env, "unwrapped", env)
-        self.start_damping = float(getattr(u, "whirl_damping", self.nmap.d_opt))
         self.threshold = float(threshold)
 
     def _new_memory(self) -> dict:
@@ -978,12 +958,6 @@ class RecoveryAgent(MarginSearchAgent):
     def _act(self, obs, rpm, m):
         if m["k"] == 0:
             m["table"] = self._nominal_table()
-            ind = self.spec.actions.damping_from_action(float(obs[self.spec.observations.damping]))
-            lo, hi = self.damping_range
-            post: GainPosterior = m["post"]
-            if lo * 1.001 < ind < hi * 0.999 and len(post.gains) > 1:
-                g = self.start_damping / ind
-                post.log_w = np.where(np.abs(np.log(post.gains / g)) < 0.06, 0.0, -50.0)
             ref = self.reference_bearing_number
             m["lam_ref"] = float(ref) if ref is not None else 0.85 * self.nmap.lambda_best
             self._decide(m, obs)
@@ -1002,8 +976,10 @@ class RecoveryAgent(MarginSearchAgent):
 def make_rule(name: str, env) -> ScriptedPolicy:
     """The rule ``name`` (one of :data:`RULE_NAMES`) for ``env``."""
     u = getattr(env, "unwrapped", env)
-    if name == "naive":
-        return NaiveAgent(u)
+    if name == "naive":  # the benchmark's one naive agent (gfb_agents.ladder), here for the CLI
+        from gfb_agents.ladder import make_naive
+
+        return make_naive(u)
     if name == "map_informed_v1":
         nmap = NominalMap.from_env(u)
         return CommandCappedAgent(u, MapInformedAgent(ControlSpec.from_env(u, nmap), nmap), name, nmap=nmap)
@@ -1028,7 +1004,7 @@ def evaluate_rule(env_id: str, name: str, seeds: range, **rule_kwargs) -> list[d
     env = gym.make(env_id)
     u = env.unwrapped
     if rule_kwargs:
-        classes = {"margin_search": MarginSearchAgent, "recovery": RecoveryAgent, "naive": NaiveAgent}
+        classes = {"margin_search": MarginSearchAgent, "recovery": RecoveryAgent}
         pol = classes[name](u, **rule_kwargs)
     else:
         pol = make_rule(name, env)

@@ -2,7 +2,7 @@
 
 For each v1 task, on training seeds (default 0-49): the return, success, certification and episode cost
 of :class:`gfb_agents.oracle.CommandedOracle` (``oracle_v1``, knows every hidden parameter) and of
-:class:`gfb_agents.oracle.CommandedRamp` (``naive_v1``, the paper's constant-damping ramp to the command,
+:class:`gfb_agents.ladder.NaiveRampAgent` (``naive``, the paper's constant-damping ramp to the command,
 capped at 0.95 Lambda_c(D_W = 1) of the nominal bearing); also the wall time per control step.  With
 ``--margins`` it instead tunes the oracle's margin on the given (training) seeds.  Run::
 
@@ -24,19 +24,23 @@ import gymnasium as gym
 import numpy as np
 
 import gfb_env.envs  # noqa: F401
-from gfb_agents.oracle import CommandedOracle, CommandedRamp
+from gfb_agents.ladder import make_naive
+from gfb_agents.oracle import CommandedOracle
 from gfb_env._cli_common import OneLineParser
 
 V1_IDS = ("gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1")
 
 
 def play(env: gym.Env, agent, seed: int) -> dict:
-    """One episode: return, success, certificate, cost, steps and wall time of the steps."""
+    """One episode (the evaluation's protocol: ``reset()``, ``env.reset``, ``observe_reset_info`` where
+    the agent has it, then ``predict``): return, success, certificate, cost, steps, wall time of the steps."""
+    agent.reset()
     obs, info = env.reset(seed=seed)
-    agent.reset(env, obs, info)
+    if hasattr(agent, "observe_reset_info"):
+        agent.observe_reset_info(info)
     ret, steps, t = 0.0, 0, 0.0
     while True:
-        a = agent.act(obs)
+        a, _ = agent.predict(obs, deterministic=True)
         t0 = time.perf_counter()
         obs, r, term, trunc, info = env.step(a)
         t += time.perf_counter() - t0
@@ -196,7 +200,7 @@ def main(argv: list[str] | None = None) -> None:
                 )
                 print(env_id, m, res[f"oracle_margin_{m:g}"], flush=True)
         else:
-            for agent in (CommandedOracle(env), CommandedRamp(env)):
+            for agent in (CommandedOracle(env), make_naive(env)):
                 rows = [play(env, agent, s) for s in seeds]
                 res[agent.name] = {**summarise(rows), "episodes_detail": rows}
                 print(env_id, agent.name, summarise(rows), flush=True)

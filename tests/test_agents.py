@@ -355,7 +355,8 @@ def test_benchmark_quick_writes_table_and_resumes_from_its_cache(tmp_path, capsy
     tasks = "gfb_env/RunUp-v0,gfb_env/WhirlRecovery-v1"
     short = json.dumps({t: {"max_episode_steps": 12} for t in tasks.split(",")})
     args = ["--quick", "--out", str(tmp_path), "--no-learned", "--tasks", tasks, "--env-kwargs", short]
-    assert main(args + ["--agents", "map_informed,feedback", "--reps", "200"]) == 0
+    agents = "map_informed,feedback,map_informed_v1"  # each runs on its tasks (v0 rules on v0 only)
+    assert main(args + ["--agents", agents, "--reps", "200"]) == 0
     rows = list(csv.DictReader((tmp_path / "benchmark_agents.csv").open()))
     required = {
         "task",
@@ -378,8 +379,8 @@ def test_benchmark_quick_writes_table_and_resumes_from_its_cache(tmp_path, capsy
     assert required <= set(rows[0]) and set(COLUMNS) == set(rows[0])
     # naive and oracle always run: they define the normalised score
     assert {(r["task"], r["agent"]) for r in rows} == {
-        (t, a) for t in tasks.split(",") for a in ("naive", "map_informed", "feedback", "oracle")
-    }
+        ("gfb_env/RunUp-v0", a) for a in ("naive", "map_informed", "feedback", "oracle")
+    } | {("gfb_env/WhirlRecovery-v1", a) for a in ("naive", "map_informed_v1", "oracle_v1")}
     assert {r["kind"] for r in rows} == {"naive", "rule", "oracle"}
     assert all(r["episodes"] == "2" and r["split"] == "test" for r in rows)
     for r in rows:
@@ -391,12 +392,12 @@ def test_benchmark_quick_writes_table_and_resumes_from_its_cache(tmp_path, capsy
     assert meta["split"] == "test" and len(meta["rows"]) == len(rows)
     assert set(meta["tasks"]["gfb_env/RunUp-v0"]["agents"]) == {"naive", "map_informed", "feedback", "oracle"}
     cache = sorted((tmp_path / CACHE_DIR).rglob("*.json"))
-    assert len(cache) == 2 * 2 * 4  # tasks x agents x one-seed chunks
+    assert len(cache) == 2 * (4 + 3)  # one-seed chunks x (agents of RunUp-v0 + of WhirlRecovery-v1)
     # a rerun plays nothing; a lost chunk (or one with another key) is played again
     capsys.readouterr()
     cache[0].unlink()
-    assert main(args + ["--agents", "map_informed,feedback", "--reps", "200"]) == 0
-    assert "(15 cached" in capsys.readouterr().err
+    assert main(args + ["--agents", agents, "--reps", "200"]) == 0
+    assert "(13 cached" in capsys.readouterr().err
     again = list(csv.DictReader((tmp_path / "benchmark_agents.csv").open()))
     assert [r["mean_return"] for r in again] == [r["mean_return"] for r in rows]
     # --merge replaces the rows of the agents it re-runs and keeps the others

@@ -152,7 +152,8 @@ def test_every_task_has_one_naive_and_one_oracle_and_kinds_are_valid():
         assert all(e.kind in ladder.KINDS for e in entries)
         kinds = [e.kind for e in entries]
         assert kinds == sorted(kinds, key=ladder.KINDS.index)  # ladder order
-        assert sum(k == "rule" for k in kinds) >= 5
+        # v0: the v0 table's rules; v1: the v1 rules of gfb_agents.rules_v1
+        assert sum(k == "rule" for k in kinds) >= (5 if task.endswith("-v0") else 2), task
 
 
 def test_register_refuses_duplicates_and_bad_entries_and_scoped_undoes():
@@ -183,20 +184,21 @@ def test_register_refuses_duplicates_and_bad_entries_and_scoped_undoes():
 def test_a_v1_reference_supersedes_the_builtin_on_its_tasks_only():
     from gfb_agents import ladder
 
+    assert ladder.oracle_for(ladder.V1_TASKS[0]).name == "oracle_v1"
     with ladder.scoped():
         ladder.register(
-            ladder.AgentEntry("oracle_v1", "oracle", ladder.V1_TASKS, ladder.make_schedule_oracle),
+            ladder.AgentEntry("my_oracle", "oracle", ladder.V1_TASKS[:1], ladder.make_commanded_oracle),
             supersede=True,
         )
-        for t in ladder.V1_TASKS:
+        assert ladder.oracle_for(ladder.V1_TASKS[0]).name == "my_oracle"
+        for t in ladder.V1_TASKS[1:]:
             assert ladder.oracle_for(t).name == "oracle_v1"
         for t in ladder.V0_TASKS:
             assert ladder.oracle_for(t).name == "oracle"
-        ladder.set_tasks("paper_ramp_D10", ladder.V0_TASKS)
-        assert "paper_ramp_D10" not in [e.name for e in ladder.ladder_for(ladder.V1_TASKS[0])]
         ladder.set_tasks("paper_ramp_D10", [])
         assert "paper_ramp_D10" not in ladder.registered()
-    assert ladder.oracle_for(ladder.V1_TASKS[0]).name == "oracle"
+    assert ladder.oracle_for(ladder.V1_TASKS[0]).name == "oracle_v1"
+    assert "paper_ramp_D10" in ladder.registered()
 
 
 def test_naive_ramp_reads_the_speed_command_where_the_task_has_one():

@@ -87,7 +87,7 @@ class WhirlRecoveryEnv(CommandedSpeedMixin, GFBEnv):
     ## v1 (``gfb_env/WhirlRecovery-v1``, ``task_version=1``; ``docs/envs.md``)
 
     The instrumented machine with the hidden damping gain g in [0.316, 3.16]; the start is v0's developed
-    whirl (Lambda_w = 1.03 lambda_best, actual D_W = d_opt, so the actuator's command is d_opt / g).  The
+    whirl state (Lambda_w = 1.03 lambda_best) with d_opt commanded, so the actual D_W is g d_opt.  The
     command is Lambda_w (observed: restore the speed as far as stably possible; it always lies above
     lambda_best), the reference of the speed progress ``Lambda_ref = reference_fraction * lambda_best``
     (0.85: 0.596, about Lambda_c of the worst damping, 0.590; with the optimum damping the whirl
@@ -188,10 +188,13 @@ class WhirlRecoveryEnv(CommandedSpeedMixin, GFBEnv):
         return EpisodeSetup(model, integ.state, self.whirl_bearing_number, self.whirl_damping, b, info)
 
     def _setup_commanded_episode(self) -> EpisodeSetup:
-        """v1: the developed whirl as v0 (the plant's actual D_W = d_opt, so the actuator's command is
-        d_opt / g with the hidden gain g drawn next), command = Lambda_w."""
-        setup = self._setup_episode_v0_start()
+        """v1: the machine was running at Lambda_w with the nominal map's optimum commanded (d_opt); its
+        actual damping is g d_opt with the hidden gain g (drawn first).  The start state is v0's whirl
+        state (the cycle at D_W = d_opt) advanced by a random phase under the actual damping, so the
+        orbit is on its way to the actual damping's cycle.  The indicated damping is d_opt whatever g:
+        a start at actual D_W = d_opt would show d_opt / g and give g away (found by the rules' author)."""
         gain = self.damping_actuator.draw_gain(self.np_random)
+        setup = self._setup_episode_v0_start(foil_damping=gain * self.whirl_damping)
         lam_w = self.whirl_bearing_number
         b = self.nominal_bearing
         setup.damping_gain = gain
@@ -200,17 +203,20 @@ class WhirlRecoveryEnv(CommandedSpeedMixin, GFBEnv):
         )
         return setup
 
-    def _setup_episode_v0_start(self) -> EpisodeSetup:
+    def _setup_episode_v0_start(self, foil_damping: float | None = None) -> EpisodeSetup:
+        """v0's start: the whirl state advanced by a random phase at the actual ``foil_damping``
+        (default v0's, d_opt)."""
         model = self._model_nominal
+        dw = self.whirl_damping if foil_damping is None else float(foil_damping)
         phase = float(self.np_random.uniform(0.0, self.whirl_period))
-        integ = self.new_integrator(model, self._whirl_state, self.whirl_bearing_number, self.whirl_damping)
+        integ = self.new_integrator(model, self._whirl_state, self.whirl_bearing_number, dw)
         integ.advance(phase)
         b = self.nominal_bearing
         info = {
             "whirl_bearing_number": self.whirl_bearing_number,
             "whirl_speed_rpm": b.speed_rpm_at(self.whirl_bearing_number),
         }
-        return EpisodeSetup(model, integ.state, self.whirl_bearing_number, self.whirl_damping, b, info)
+        return EpisodeSetup(model, integ.state, self.whirl_bearing_number, dw, b, info)
 
     def _best_bearing_number_guess(self) -> float:
         return float(self.constants["lambda_best"])

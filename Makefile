@@ -44,8 +44,10 @@ bench: $(STAMP)
 bench-env: $(STAMP)
 	$(BIN)/python -m gfb_experiments.bench_env
 
+# the v1 benchmark on the test seeds (about an hour on 2 cores; resumable: a rerun skips finished chunks)
 agents-benchmark: $(STAMP)
-	$(BIN)/python -m gfb_experiments.benchmark_agents
+	$(BIN)/python -m gfb_experiments.benchmark_agents --split test --episodes 100 --n-jobs 2 \
+		--tasks gfb_env/RunUp-v1,gfb_env/RunUpRandomized-v1,gfb_env/WhirlRecovery-v1
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache

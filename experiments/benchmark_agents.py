@@ -87,10 +87,10 @@ COLUMNS = [
     "final_stable_rate",
     "max_whirl_amplitude",
     "mean_steps",
-    "floored_seeds",
+    "oracle_lost_seeds",
     "wall_s",
 ]
-_INT_COLUMNS = ("episodes", "training_seeds", "touchdowns", "floored_seeds")
+_INT_COLUMNS = ("episodes", "training_seeds", "touchdowns", "oracle_lost_seeds")
 _STR_COLUMNS = ("task", "agent", "kind", "split")
 CACHE_DIR = "benchmark_cache"
 
@@ -307,9 +307,9 @@ def reduce_results(
                 if any([e.seed for e in r] != seeds for r in runs):
                     raise ValueError(f"{task} {name}: its seeds differ from the naive agent's")
                 scores, sinfo = normalized_scores(ret, rn, ro)
-                floored = sinfo["floored_seeds"]
+                lost = sinfo["oracle_lost_seeds"]
             else:
-                scores, floored = np.full(ret.shape, math.nan), 0
+                scores, lost = np.full(ret.shape, math.nan), 0
             nstat = interval_estimates(scores, reps=reps)
             rstat = interval_estimates(ret, reps=reps)
             summ = summarise(flat)
@@ -337,7 +337,7 @@ def reduce_results(
                 "final_stable_rate": summ["final_stable_rate"],
                 "max_whirl_amplitude": summ["max_whirl_amplitude"],
                 "mean_steps": summ["mean_steps"],
-                "floored_seeds": floored,
+                "oracle_lost_seeds": lost,
                 "wall_s": round(walls[(t, name)], 1),
             }
             rows.append(row)

@@ -1,16 +1,16 @@
 """Statistics of the agent benchmark: per-episode normalisation and rliable's interval estimates.
 
-* :func:`normalized_scores`: ``s = (R - R_naive) / mean_gap`` per episode, paired with the naive return of
-  the *same seed*, on the task's scale ``mean_gap = mean over its seeds of (R_oracle - R_naive)``: 0 =
-  naive, 1 = oracle on average, and an agent's mean score is exactly ``(mean R - mean R_naive) / (mean
-  R_oracle - mean R_naive)``, so the ranking by mean score is the ranking by mean return.  Why not each
-  seed's own gap: on a seed where the naive ramp happens to do as well as the oracle (a command below the
-  naive's cap, say) the gap is ~0 and the score explodes; a first version floored such gaps at 10 % of the
-  median and still gave heavy tails whose IQM ranked a rule with a lower mean return first (RunUpRandomized-
-  v1 test seeds: identify_map_v1 IQM 0.79 at mean return 34.3, margin_search 0.55 at 51.1).  If the mean gap
-  is not positive (the oracle does not beat the naive on average) the task has no scale: every score is
-  NaN and ``no_headroom`` is set.  ``oracle_lost_seeds`` counts the seeds on which the oracle scored below
-  the naive (shocks, for instance).
+* :func:`normalized_scores`: every episode's return on the task's scale, ``s = (R - mean R_naive) /
+  (mean R_oracle - mean R_naive)``, the means over the task's evaluation seeds (all agents play the same
+  seeds): 0 = the naive agent's mean, 1 = the oracle's -- as Atari's human-normalised score uses one random
+  and one human reference per game.  An agent's mean score is its normalised mean return; the IQM is a
+  robust location of its return distribution on that scale.  Not paired per seed: a per-seed difference
+  ``R - R_naive`` is dominated by the naive's touchdowns (-100 on a quarter of the seeds), whose trimmed
+  mean then says little (the oracle's own IQM of paired differences was 0.37 on RunUp-v1), and a per-seed
+  denominator ``R_oracle - R_naive`` explodes where both tie (a first version; its IQM ranked a rule with
+  a lower mean return first).  If the oracle's mean does not beat the naive's the task has no scale: every
+  score is NaN and ``no_headroom`` is set.  ``oracle_lost_seeds`` counts the seeds on which the oracle
+  scored below the naive (shocks, for instance).
 * :func:`interval_estimates`: IQM (and mean) of a score matrix with stratified-bootstrap 95 % CIs from
   rliable (``rly.get_interval_estimates``).  The matrix is ``runs x episodes`` (one row per independent
   training seed; rules, naive and oracle have one row).  It goes to rliable transposed, as its
@@ -50,8 +50,9 @@ DEFAULT_REPS = 10_000
 
 
 def normalized_scores(returns: np.ndarray, naive: np.ndarray, oracle: np.ndarray) -> tuple[np.ndarray, dict]:
-    """Per-episode normalised scores of ``returns`` (shape ``(runs, episodes)`` or ``(episodes,)``) against
-    the naive returns of the same seeds on the task's oracle-naive scale (shape ``(episodes,)`` each).
+    """Per-episode normalised scores of ``returns`` (shape ``(runs, episodes)`` or ``(episodes,)``) on the
+    scale of the naive and oracle returns of the same seeds (shape ``(episodes,)`` each; their means are
+    the references).
 
     Returns ``(scores, info)`` with ``scores`` of the shape of ``returns`` and ``info`` =
     ``{"mean_gap", "median_gap", "oracle_lost_seeds", "no_headroom"}`` (module docstring)."""
@@ -63,7 +64,7 @@ def normalized_scores(returns: np.ndarray, naive: np.ndarray, oracle: np.ndarray
     if r.shape[-1] != n.shape[0]:
         raise ValueError(f"returns have {r.shape[-1]} episodes, naive/oracle {n.shape[0]}")
     gap = o - n
-    mean_gap = float(np.mean(gap)) if gap.size else math.nan
+    mean_gap = float(np.mean(o) - np.mean(n)) if gap.size else math.nan
     info = {
         "mean_gap": mean_gap,
         "median_gap": float(np.median(gap)) if gap.size else math.nan,
@@ -74,7 +75,7 @@ def normalized_scores(returns: np.ndarray, naive: np.ndarray, oracle: np.ndarray
     scale = max(1.0, float(np.mean(np.abs(n))), float(np.mean(np.abs(o)))) if gap.size else 1.0
     if not (math.isfinite(mean_gap) and mean_gap > NO_HEADROOM_REL * scale):
         return np.full(r.shape, math.nan), info | {"no_headroom": True}
-    return (r - n) / mean_gap, info
+    return (r - float(np.mean(n))) / mean_gap, info
 
 
 def iqm(scores: np.ndarray) -> float:

@@ -37,6 +37,14 @@ DATA_FILES = (
     "gfb_agents/policies/WhirlRecovery_sac/model.zip",
     "gfb_agents/policies/WhirlRecovery_sac/vecnormalize.pkl",
     "gfb_agents/policies/WhirlRecovery_sac/policy.json",
+    "gfb_agents/hyperparams/recurrentppo.yml",
+    # the v1 learned agents: one folder per training seed
+    *(
+        f"gfb_agents/policies/{task}-v1_ppo_fs4/seed{r}/{f}"
+        for task in ("RunUp", "RunUpRandomized", "WhirlRecovery")
+        for r in range(5)
+        for f in ("model.zip", "vecnormalize.pkl", "policy.json")
+    ),
 )
 
 CHECKS = textwrap.dedent(

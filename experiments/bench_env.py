@@ -116,6 +116,23 @@ def _single_rate(env_id: str, action: np.ndarray, env_steps: int, seed: int) -> 
     return rate
 
 
+def _single_rate_worker(args: tuple) -> float:
+    env_id, action, env_steps, seed = args
+    return _single_rate(env_id, action, env_steps, seed)
+
+
+def two_process_control(env_id: str, action: np.ndarray, env_steps: int, seed: int) -> dict:
+    """One env alone, then two independent one-env processes at the same time: whether the machine's
+    cores give 2x to independent work (the yardstick of the native env's parallel efficiency)."""
+    import multiprocessing as mp
+
+    alone = _single_rate(env_id, action, env_steps, seed)
+    with mp.get_context("spawn").Pool(2) as pool:
+        pool.map(_single_rate_worker, [(env_id, action, 20, seed)] * 2)  # warm the workers' kernels
+        both = pool.map(_single_rate_worker, [(env_id, action, env_steps, seed)] * 2)
+    return {"alone": alone, "two_processes": both, "aggregate_over_alone": sum(both) / alone}
+
+
 def _subproc_rate(env_id: str, action: np.ndarray, n: int, env_steps: int, seed: int) -> float:
     """SB3's SubprocVecEnv (one worker process per env, SB3's own autoreset)."""
     from stable_baselines3.common.env_util import make_vec_env
@@ -450,6 +467,15 @@ def main() -> None:
     log(
         "  parallel efficiency of the compiled batch with 2 threads: "
         f"{prof['parallel_efficiency_2_threads']:.2f}"
+    )
+    ctl = two_process_control(
+        SCENARIOS["equilibrium"], _hold_action("equilibrium", args.seed), 2 * env_steps, args.seed
+    )
+    results["two_process_control"] = ctl
+    log(
+        f"  control: one env alone {ctl['alone']:.0f} env steps/s; two independent one-env processes at "
+        f"once {ctl['two_processes'][0]:.0f} + {ctl['two_processes'][1]:.0f} = "
+        f"{ctl['aggregate_over_alone']:.2f}x (load {_load():.2f})"
     )
 
     if ppo_steps > 0:

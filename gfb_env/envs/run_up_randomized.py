@@ -248,16 +248,7 @@ class RunUpRandomizedEnv(RunUpEnv):
         if self.commanded is not None:
             return self._setup_commanded_episode(options)
         rng = self.np_random
-        c = float(rng.uniform(*self.clearance_range_m))
-        fk = float(rng.uniform(*self.stiffness_factor_range))
-        fl = float(rng.uniform(*self.load_range_n))
-        bounds = dict(zip(self.reset_options, self.table.bounds, strict=True))
-        fixed = {k: check_in(f"reset option {k!r}", v, *bounds[k]) for k, v in options.items()}
-        c = fixed.get("clearance_m", c)
-        fk = fixed.get("stiffness_factor", fk)
-        fl = fixed.get("load_n", fl)
-        b = self.nominal_bearing.replace(clearance_m=c, external_load_per_bearing_n=fl)
-        model = viscoelastic_model(self.grid, b, foil_stiffness=fk * b.foil_stiffness)
+        c, fk, fl, b, model = self._draw_bearing(options)
         best = self.table(c, fk, fl)
         lam0 = b.bearing_number_at(self.start_speed_rpm)
         # the target never exceeds 98 % of the top speed (a very stiff, heavily loaded draw)

@@ -113,17 +113,34 @@ class BearingIdentifier:
         Local fits from the ``max_starts`` best points of a ``coarse``-per-axis grid, in that order, until
         one reproduces the observation to ``accept_rms`` (rms over the fitted entries; a float32
         observation of the true draw gives ~1e-7); else the best of them."""
-        y = self.measured(obs)
+        return self.fit_measured(
+            self.measured(obs), None, coarse, max_starts, accept_rms,
+            x_scale=1.0, diff_step=1e-4, xtol=1e-10, ftol=1e-12, max_nfev=60,
+        )  # fmt: skip
+
+    def fit_measured(
+        self,
+        y: np.ndarray,
+        weights: np.ndarray | None = None,
+        coarse: int = 3,
+        max_starts: int = 6,
+        accept_rms: float = 1e-5,
+        **least_squares_options,
+    ) -> BearingEstimate:
+        """The fit of :meth:`fit` to measured entries ``y`` (:meth:`measured`), each residual entry times
+        ``weights`` (None: 1), stopping at a weighted rms below ``accept_rms``; ``least_squares_options``
+        go to :func:`scipy.optimize.least_squares`."""
         self.solves = 0
         state: dict = {"guess": None}
+        w = 1.0 if weights is None else np.asarray(weights, dtype=float)
 
         def residual(x: np.ndarray) -> np.ndarray:
             try:
                 pred, s = self.predict(*self._param(x), guess=state["guess"])
             except EquilibriumError:
-                return np.full(y.shape, 10.0)  # no equilibrium: as far from the data as it gets
+                return np.full(y.shape, 10.0) * w  # no equilibrium: as far from the data as it gets
             state["guess"] = s
-            return pred - y
+            return (pred - y) * w
 
         # coarse grid in the unit cube: the starts of the local fit (smooth, but not convex: from a poor
         # start the fit can stall at a bound, e.g. the lowest load, with a visible residual)
@@ -133,16 +150,7 @@ class BearingIdentifier:
         sol = None
         for j in np.argsort(cost)[:max_starts]:
             state["guess"] = None
-            trial = least_squares(
-                residual,
-                starts[j],
-                bounds=(0.0, 1.0),
-                x_scale=1.0,
-                diff_step=1e-4,
-                xtol=1e-10,
-                ftol=1e-12,
-                max_nfev=60,
-            )
+            trial = least_squares(residual, starts[j], bounds=(0.0, 1.0), **least_squares_options)
             if sol is None or trial.cost < sol.cost:
                 sol = trial
             if np.sqrt(np.mean(sol.fun**2)) < accept_rms:

@@ -451,34 +451,10 @@ def identify_bearing(
     sd_pos = math.hypot(POSITION_SD[0], POSITION_SD[1] / math.sqrt(n))
     sd_p = math.hypot(PRESSURE_SD[0], PRESSURE_SD[1] / math.sqrt(n))
     wts = np.r_[np.full(2, 1.0 / sd_pos), np.full(len(y) - 2, 1.0 / sd_p)]
-    identifier.solves = 0
-    state: dict = {"guess": None}
-
-    def residual(x: np.ndarray) -> np.ndarray:
-        try:
-            pred, s = identifier.predict(*identifier._param(x), guess=state["guess"])
-        except EquilibriumError:
-            return np.full(y.shape, 10.0) * wts
-        state["guess"] = s
-        return (pred - y) * wts
-
-    ticks = np.linspace(0.0, 1.0, coarse)
-    starts = [np.array([a, b, c]) for a in ticks for b in ticks for c in ticks]
-    cost = [float(np.sum(residual(x) ** 2)) for x in starts]
-    sol = None
-    for j in np.argsort(cost)[:max_starts]:
-        state["guess"] = None
-        trial = least_squares(
-            residual, starts[j], bounds=(0.0, 1.0), diff_step=1e-3, xtol=1e-8, ftol=1e-10, max_nfev=40
-        )
-        if sol is None or trial.cost < sol.cost:
-            sol = trial
-        # chi^2 per entry near 1: as good as the sensors allow
-        if np.mean(sol.fun**2) < 1.5:
-            break
-    p = identifier._param(sol.x)
-    rms = float(np.sqrt(np.mean(sol.fun**2)))
-    return BearingEstimate(float(p[0]), float(p[1]), float(p[2]), rms, identifier.solves)
+    # stop when chi^2 per entry is near 1 (rms below sqrt(1.5)): as good as the sensors allow
+    return identifier.fit_measured(
+        y, wts, coarse, max_starts, math.sqrt(1.5), diff_step=1e-3, xtol=1e-8, ftol=1e-10, max_nfev=40
+    )
 
 
 def refine_bearing(

@@ -226,11 +226,17 @@ def choose_operating_point(
     n_damping: int = 49,
     n_lambda: int = 200,
     level: float = 0.0,
+    target_weight: float = 0.5,
+    tolerance: float = 0.02,
 ) -> tuple[float, float, float]:
-    """``(commanded D_W, Lambda set-point, expected value)`` maximising the expected certified progress
-    ``E[p(Lambda) 1{stable}] - fail_cost P(unstable)`` over commanded dampings and speeds.
+    """``(commanded D_W, Lambda set-point, expected value)`` maximising the expected terminal reward
+    ``E[p(Lambda) 1{stable}] + target_weight P(stable and on target) - fail_cost P(unstable)`` over
+    commanded dampings and speeds (in units of the certified bonus: the v1 reward's on-target bonus is
+    ``target_weight = 25 / 50`` of it).
 
-    ``p = clip((Lambda - lam_ref)/(lam_cmd - lam_ref), 0, 1)`` as the v1 reward; stable means
+    ``p = clip((Lambda - lam_ref)/(lam_cmd - lam_ref), 0, 1)`` as the v1 reward; "on target" means
+    ``Lambda >= (1 - tolerance) min(lam_cmd, lambda_best(g))`` with ``lambda_best(g)`` the best boundary
+    over the commanded damping range for that gain, as the env's success test; stable means
     ``Lambda < Lambda_c(g D_cmd)`` with ``Lambda_c`` of the (identified) plant uncertain by a Gaussian of
     relative sd ``rel_sd`` (identification error, interpolation); with ``level < 0`` "stable" means
     ``sigma < level``: a margin in decay rate, so that a shock's transient dies within a few steps and
@@ -244,12 +250,17 @@ def choose_operating_point(
     top = min(lam_cmd, lam_cap)
     lams = np.linspace(lam_ref + 0.3 * (top - lam_ref), top, n_lambda)
     p = np.clip((lams - lam_ref) / max(lam_cmd - lam_ref, 1e-9), 0.0, 1.0)
+    # the success test's target per gain: the true boundary (level 0), best over the damping range
+    lc0 = lc if level == 0.0 else table.critical(posterior.gains[:, None] * ds[None, :], 0.0)
+    goal = (1.0 - tolerance) * np.minimum(lam_cmd, np.nanmax(lc0, axis=1))  # (n_g,)
+    hit = lams[None, :] >= goal[:, None]  # (n_g, n_lambda)
     best = (float(ds[0]), float(lams[0]), -np.inf)
     for j in range(n_damping):
         # P(stable at each Lambda) = sum_g w_g Phi((Lambda_c - Lambda)/(rel_sd Lambda_c))
-        z = (lc[:, j][:, None] - lams[None, :]) / (rel_sd * lc[:, j][:, None])
-        ps = w @ ndtr(z)
-        val = p * ps - fail_cost * (1 - ps) + 1e-3 * float(w @ lc[:, j]) / lam_cmd
+        phi = ndtr((lc[:, j][:, None] - lams[None, :]) / (rel_sd * lc[:, j][:, None]))
+        ps = w @ phi
+        pt = w @ (phi * hit)
+        val = p * ps + target_weight * pt - fail_cost * (1 - ps) + 1e-3 * float(w @ lc[:, j]) / lam_cmd
         k = int(np.argmax(val))
         if val[k] > best[2]:
             best = (float(ds[j]), float(lams[k]), float(val[k]))

@@ -152,7 +152,13 @@ def test_reward_terms_sum_to_the_reward_and_costs_are_consistent(env_id):
     while True:
         _, r, term, trunc, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
         terms = {k: v for k, v in info.items() if k.startswith("reward_")}
-        assert set(terms) == {"reward_speed", "reward_whirl", "reward_certified_speed", "reward_touchdown"}
+        assert set(terms) == {
+            "reward_speed",
+            "reward_whirl",
+            "reward_certified_speed",
+            "reward_on_target",
+            "reward_touchdown",
+        }
         assert r == pytest.approx(sum(terms.values()), abs=1e-12)
         assert info["cost"] == max(info["cost_whirl"], info["cost_film"], info["cost_touchdown"])
         assert info["cost_whirl"] == float(info["whirl_amplitude"] > 0.15)
@@ -160,6 +166,8 @@ def test_reward_terms_sum_to_the_reward_and_costs_are_consistent(env_id):
         total_cost += info["cost"]
         assert info["episode_cost"] == total_cost
         assert (info["reward_certified_speed"] > 0) <= info["certified"]
+        # the on-target bonus is paid exactly on success (certified and within 2 % of the target)
+        assert info["reward_on_target"] == (25.0 if info["is_success"] else 0.0)
         if term or trunc:
             break
 
@@ -209,7 +217,7 @@ def test_holding_just_above_the_actual_critical_speed_is_not_certified():
     assert max(amps[-env.unwrapped.hold_steps :]) < env.unwrapped.stable_amplitude  # a calm window...
     assert info["certification"] == "unstable_equilibrium" and info["growth_rate"] > 0  # ...is not enough
     assert not info["certified"] and not info["is_success"] and info["termination_reason"] == "horizon"
-    assert info["reward_certified_speed"] == 0.0
+    assert info["reward_certified_speed"] == 0.0 and info["reward_on_target"] == 0.0
     info, amps, g2, lam_c2 = _hold_at(env, 0.99)
     assert (g2, lam_c2) == (g, lam_c)
     assert info["certified"] and info["certification"] == "stable" and info["growth_rate"] < 0
@@ -366,7 +374,7 @@ def test_the_oracle_recovers_from_the_whirl():
         if term or trunc:
             break
     assert min(speeds) < 0.95 * env.unwrapped.whirl_bearing_number  # it slowed down first
-    assert info["is_success"] and info["certified"]
+    assert info["is_success"] and info["certified"] and info["reward_on_target"] == 25.0
     assert info["bearing_number"] == pytest.approx(
         0.99 * env.unwrapped.best_stable_operating_point().bearing_number, rel=1e-6
     )
@@ -386,6 +394,7 @@ def test_a_failing_best_point_search_never_crashes_the_horizon(monkeypatch):
     for _ in range(12):  # hold the start speed: certified, far below the command
         _, r, term, _, info = env.step(np.array([0.0, 0.0], dtype=np.float32))
     assert term and info["certified"] and not info["is_success"] and math.isfinite(r)
+    assert info["reward_on_target"] == 0.0
 
 
 def test_randomized_success_below_the_command_is_decided_by_the_exact_best_speed():

@@ -13,7 +13,8 @@ WhirlRecovery-v1 (``docs/envs.md``, issue 11).
   lambda_best)``, ``lambda_best`` the exact best stable bearing number of the episode's plant over the
   achievable actual damping ``[g D_min, g D_max]`` (:meth:`CommandedSpeedMixin.best_stable_operating_point`,
   computed only when the command itself was not reached).
-* **Reward**: :class:`~gfb_env.envs.rewards.CommandedSpeedReward`.
+* **Reward**: :class:`~gfb_env.envs.rewards.CommandedSpeedReward` (per-step speed progress, whirl,
+  the certified bonus and the on-target bonus of a successful episode).
 * **Costs** (Safety-Gymnasium style, :class:`CostSpec`): ``info["cost"]`` per step.
 """
 
@@ -290,7 +291,7 @@ class CommandedSpeedMixin:
         ce: CommandedEpisode = self.episode.command
         cert = ce.certificate
         mean_p = float(np.mean(ce.progresses)) if (cert is not None and cert.certified) else None
-        return self.commanded.reward.terms(out, ce.stable, ce.progresses[-1], mean_p)
+        return self.commanded.reward.terms(out, ce.stable, ce.progresses[-1], mean_p, ce.success)
 
     # ---- the episode's command and hidden plant (public, per episode) ---------------------------
     @property

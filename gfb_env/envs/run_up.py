@@ -148,8 +148,9 @@ class RunUpEnv(CommandedSpeedMixin, GFBEnv):
     final Lambda and actual D_W is linearly stable (``info["certified"]``, ``info["growth_rate"]``).
     Reward (:class:`~gfb_env.envs.rewards.CommandedSpeedReward`): ``0.1 p`` per calm step with
     ``p = clip((Lambda - Lambda_0) / (Lambda_cmd - Lambda_0), 0, 1)``, ``-0.5 min(A, 1.5)``, ``-100`` on
-    touchdown, and ``50 mean(p)`` over the window at a certified horizon.  Success: certified and the
-    window-mean Lambda >= (1 - 0.02) min(Lambda_cmd, lambda_best of the achievable actual damping).
+    touchdown, ``50 mean(p)`` over the window at a certified horizon, and ``25`` on success.  Success:
+    certified and the window-mean Lambda >= (1 - 0.02) min(Lambda_cmd, lambda_best of the achievable
+    actual damping).
     Costs: ``info["cost"]`` (whirl > 0.15 C, film < 0.1 C, touchdown); constraint: episode cost <= 5.
     The start damping command is drawn log-uniformly in the damping range (the plant's D_W is g times it).
 
@@ -159,7 +160,7 @@ class RunUpEnv(CommandedSpeedMixin, GFBEnv):
     * v1 (issue 10): v0 on the instrumented machine.  Redefined in place by issue 11 (no benchmark result
       had been published on v1): hidden damping gain in [0.316, 3.16], the observed speed command, the
       remaining-time observation, the fixed horizon of 250 steps, the stability certificate, the
-      commanded-speed reward and the costs.
+      commanded-speed reward and the costs; then the on-target bonus (25 on success) added to the reward.
     """
 
     def __init__(

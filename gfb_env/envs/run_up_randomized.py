@@ -141,7 +141,8 @@ class RunUpRandomizedEnv(RunUpEnv):
     * v0: initial version.
     * v1 (issue 10): v0 on the instrumented machine with a damping gain in [0.5, 2].  Redefined in place
       by issue 11 (no benchmark result had been published on v1): gain in [0.316, 3.16], the commanded
-      speed in absolute rpm, the fixed horizon, the certificate, the exact best stable point, costs.
+      speed in absolute rpm, the fixed horizon, the certificate, the exact best stable point, costs;
+      then the on-target bonus (25 on success) added to the reward.
     """
 
     def __init__(

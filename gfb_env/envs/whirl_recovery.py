@@ -101,7 +101,8 @@ class WhirlRecoveryEnv(CommandedSpeedMixin, GFBEnv):
     * v0: initial version.
     * v1 (issue 10): v0 on the instrumented machine.  Redefined in place by issue 11 (no benchmark result
       had been published on v1): hidden damping gain, the observed command (Lambda_w) and remaining time,
-      the fixed horizon of 200 steps, the certificate, the commanded-speed reward and the costs.
+      the fixed horizon of 200 steps, the certificate, the commanded-speed reward and the costs; then
+      the on-target bonus (25 on success) added to the reward.
     """
 
     def __init__(

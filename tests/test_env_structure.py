@@ -74,7 +74,7 @@ def test_reward_terms_in_info_sum_to_the_reward(env_id):
     for _ in range(3):
         _, r, term, trunc, info = env.step(env.action_space.sample())
         terms = {k: v for k, v in info.items() if k.startswith("reward_")}
-        assert len(terms) == (5 if env_id.endswith("-v0") else 4)  # v1: CommandedSpeedReward
+        assert len(terms) == 5  # v0: RunUp/WhirlRecoveryReward; v1: CommandedSpeedReward
         assert sum(terms.values()) == pytest.approx(r, abs=1e-12)
         assert r == env.unwrapped.episode.reward
 

@@ -13,7 +13,7 @@ from gymnasium.vector import AutoresetMode
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_env.analysis.stability import critical_bearing_number
-from gfb_env.envs import ENV_IDS, V1_DAMPING_GAIN_RANGE
+from gfb_env.envs import ENV_IDS, V1_DAMPING_GAIN_RANGE, V1_TASK, V1_WHIRL_RECOVERY_GAIN_RANGE
 from gfb_env.envs.certify import StabilityCertificate, below_best_stable_speed, best_stable_operating_point
 from gfb_env.envs.commanded import CostSpec
 from gfb_env.envs.episode import StepOutcome
@@ -89,7 +89,8 @@ def test_the_commands_are_drawn_per_episode_in_their_ranges():
 def test_every_v1_task_hides_the_damping_gain_and_its_horizon_is_the_time_limit(env_id):
     env = gym.make(env_id)
     u = env.unwrapped
-    assert u.damping_actuator.gain_range == pytest.approx(V1_DAMPING_GAIN_RANGE)
+    expected = V1_WHIRL_RECOVERY_GAIN_RANGE if "WhirlRecovery" in env_id else V1_DAMPING_GAIN_RANGE
+    assert u.damping_actuator.gain_range == pytest.approx(expected)
     assert V1_DAMPING_GAIN_RANGE == pytest.approx((0.3162, 3.162), rel=1e-3)
     assert env.spec.max_episode_steps == u.commanded.episode_steps
     gains = set()
@@ -105,6 +106,32 @@ def test_every_v1_task_hides_the_damping_gain_and_its_horizon_is_the_time_limit(
     d_opt = gym.make("gfb_env/RunUp-v1").unwrapped.constants["d_opt"]
     for g in V1_DAMPING_GAIN_RANGE:
         assert 0.1 <= d_opt / g <= 10.0
+
+
+@pytest.mark.parametrize("gain", [*V1_WHIRL_RECOVERY_GAIN_RANGE, 0.45, 2.6])
+def test_whirl_recovery_v1_gain_range_is_where_the_start_whirl_survives_its_command(gain):
+    """Why WhirlRecovery-v1 draws g in [0.6, 1.8]: at both ends the machine, decelerating at the motor
+    limit with its start command d_opt kept, does not touch down in the first 5 steps (it could have been
+    whirling there); outside (0.45, 2.6) it does within 3 steps, before any policy could know g."""
+    import dataclasses
+
+    act = dataclasses.replace(V1_TASK["damping_actuator"], gain=gain, gain_range=None)
+    env = gym.make("gfb_env/WhirlRecovery-v1", damping_actuator=act, **NO_SHOCKS)
+    u = env.unwrapped
+    inside = V1_WHIRL_RECOVERY_GAIN_RANGE[0] <= gain <= V1_WHIRL_RECOVERY_GAIN_RANGE[1]
+    a = np.array([-1.0, u.action_from_damping(u.constants["d_opt"])], dtype=np.float32)
+    for seed in (0, 1):
+        env.reset(seed=seed)
+        steps = 0
+        for _ in range(5):
+            _, _, term, _, info = env.step(a)
+            steps += 1
+            if term:
+                break
+        touched = info["termination_reason"] in ("touchdown", "solver_failure")
+        assert touched != inside, (gain, seed, steps)
+        if touched:
+            assert steps <= 3
 
 
 def test_whirl_recovery_v1_starts_on_the_whirl_with_the_map_optimum_commanded():

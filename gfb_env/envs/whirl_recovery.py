@@ -86,7 +86,10 @@ class WhirlRecoveryEnv(CommandedSpeedMixin, GFBEnv):
 
     ## v1 (``gfb_env/WhirlRecovery-v1``, ``task_version=1``; ``docs/envs.md``)
 
-    The instrumented machine with the hidden damping gain g in [0.316, 3.16]; the start is v0's developed
+    The instrumented machine with the hidden damping gain g log-uniform in [0.6, 1.8]
+    (:data:`~gfb_env.envs.V1_WHIRL_RECOVERY_GAIN_RANGE`: the gains with which a machine can whirl steadily
+    at Lambda_w with d_opt commanded; outside it the start orbit touches down within 1-3 steps whatever
+    the policy does); the start is v0's developed
     whirl state (Lambda_w = 1.03 lambda_best) with d_opt commanded, so the actual D_W is g d_opt.  The
     command is Lambda_w (observed: restore the speed as far as stably possible; it always lies above
     lambda_best), the reference of the speed progress ``Lambda_ref = reference_fraction * lambda_best``
@@ -102,7 +105,8 @@ class WhirlRecoveryEnv(CommandedSpeedMixin, GFBEnv):
     * v1 (issue 10): v0 on the instrumented machine.  Redefined in place by issue 11 (no benchmark result
       had been published on v1): hidden damping gain, the observed command (Lambda_w) and remaining time,
       the fixed horizon of 200 steps, the certificate, the commanded-speed reward and the costs; then
-      the on-target bonus (25 on success) added to the reward.
+      the on-target bonus (25 on success) added to the reward, and the gain narrowed from [0.316, 3.16]
+      to [0.6, 1.8] (a third of the draws touched down at step 1-3 before any policy could act).
     """
 
     def __init__(

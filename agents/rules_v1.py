@@ -27,9 +27,10 @@ Rules (:func:`make_rule` builds them by name, :data:`RULE_NAMES`):
   whirl onsets (evidence of instability), and run at the damping and speed that maximise the expected
   certified progress under the posterior (:func:`choose_operating_point`); a growing envelope backs the
   speed off below the fold and caps the set-point lower.
-* ``recovery`` (WhirlRecovery-v1): decelerate at the motor limit while the orbit envelope exceeds 0.15 C,
-  at the damping that is optimal for the estimated ``g``, then return to the operating point of
-  ``margin_search``.
+* ``recovery`` (WhirlRecovery-v1): decelerate at the motor limit while the orbit envelope exceeds 0.15 C
+  (the prior's best damping), learn ``g`` from the survival of the first steps, the unbalance probe at a
+  low speed safe for every plausible plant and the decays, then return to the operating point of
+  ``margin_search`` (:class:`RecoveryAgent`).
 
 Where the actual damping shows: the static equilibrium does not depend on ``D_W`` and a speed ramp
 moves it by ~1e-4 C per control step (far below the envelope's noise floor of ~0.035 C), so no speed or

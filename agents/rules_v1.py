@@ -919,7 +919,7 @@ class RecoveryAgent(MarginSearchAgent):
     ``threshold`` (the whirl collapses below the fold), learn the damping gain ``g`` at a safe low speed,
     then return to the operating point of ``margin_search`` (posterior over ``g``).
 
-    Where ``g`` shows (measured on the training seeds 50-99, docs/agents.md):
+    Where ``g`` shows (docs/agents.md; the window from the old rule's runs on training seeds 0-49):
 
     * **Survival of the first steps.**  The start orbit (1.1 C) grows into a touchdown within two steps
       unless the actual damping lies in ``survival_window`` (``[1.2, 5.0]``: with ``d_opt`` commanded the

@@ -151,6 +151,86 @@ def test_recovery_starts_from_the_prior_over_the_gain():
     env.close()
 
 
+def test_recovery_survival_weighs_down_the_gains_outside_the_window():
+    """Alive after the first steps: plants whose actual damping g d_start lies outside the survival
+    window (they touch down within two steps on the training seeds) lose a factor survival_odds."""
+    from gfb_agents.rules_v1 import RecoveryAgent
+
+    env = gym.make("gfb_env/WhirlRecovery-v1")
+    pol = RecoveryAgent(env.unwrapped)
+    m = pol._new_memory()
+    m["d_start"] = 2.0
+    pol._survived(m)
+    post = m["post"]
+    actual = post.gains * 2.0
+    inside = (actual >= 1.2) & (actual <= 5.0)
+    assert inside.any() and (~inside).any()
+    lw = post.log_w - post.log_w.max()
+    assert np.allclose(lw[inside], 0.0) and np.allclose(lw[~inside], np.log(0.05))
+    env.close()
+
+
+def test_recovery_probe_speed_keeps_every_plausible_plant_stable():
+    from gfb_agents.rules_v1 import RecoveryAgent
+
+    model = viscoelastic_model("31x7", NOMINAL_BEARING)
+    table = StabilityTable.compute(model, 0.50, 0.70, n_lambda=9, damping_range=(0.1, 10.0), n_damping=11)
+
+    env = gym.make("gfb_env/WhirlRecovery-v1")
+    pol = RecoveryAgent(env.unwrapped)
+    m = pol._new_memory()
+    m["table"] = table
+    m["post"].log_w = np.where((m["post"].gains > 0.5) & (m["post"].gains < 2.0), 0.0, -50.0)
+    lam = pol.probe_bearing_number(m, 0.66)
+    assert 0.50 < lam < 0.66
+    plausible = m["post"].gains[(m["post"].gains > 0.5) & (m["post"].gains < 2.0)]
+    for d in pol.unbalance_dampings:
+        # at the probe speed every plausible plant decays at the probe's rate at least (table resolution)
+        assert np.all(table.growth_rate(lam, plausible * d) <= pol.probe_growth_rate + 2e-4)
+    assert pol.probe_bearing_number(m, 0.55) == 0.55  # never above the present speed
+    env.close()
+
+
+def test_recovery_decisions_depend_only_on_the_observations():
+    """The rule bound to an env whose hidden gain differs, fed the observations of another episode,
+    takes the same actions as the rule that played it: it reads no hidden parameter."""
+    env_a, env_b = gym.make("gfb_env/WhirlRecovery-v1"), gym.make("gfb_env/WhirlRecovery-v1")
+    pol_a, pol_b = make_rule("recovery", env_a), make_rule("recovery", env_b)
+    obs, _ = env_a.reset(seed=0)
+    env_b.reset(seed=4)  # another hidden gain: 2.77 (seed 0 draws 1.37)
+    assert abs(np.log(env_b.unwrapped.damping_gain / env_a.unwrapped.damping_gain)) > 0.5
+    for k in range(30):
+        a, _ = pol_a.predict(obs, episode_start=(k == 0))
+        b, _ = pol_b.predict(obs, episode_start=(k == 0))
+        assert np.array_equal(a, b), k
+        obs, _, term, trunc, _ = env_a.step(a)
+        assert not (term or trunc)
+    env_a.close()
+    env_b.close()
+
+
+@pytest.mark.parametrize("seed", [0, 6])
+def test_recovery_learns_the_gain_and_ends_certified(seed):
+    """Training seeds 0 (g = 1.37) and 6 (g = 1.09): after the dip, the survival evidence, the decays and
+    the unbalance probe, the posterior mean of ln g is within 0.2 of the truth and the end is certified
+    within 5 % of lambda_best."""
+    env = gym.make("gfb_env/WhirlRecovery-v1")
+    u = env.unwrapped
+    pol = make_rule("recovery", env)
+    obs, info = env.reset(seed=seed)
+    k, done = 0, False
+    while not done:
+        a, _ = pol.predict(obs, episode_start=(k == 0))
+        obs, r, term, trunc, info = env.step(a)
+        k, done = k + 1, term or trunc
+    post = pol._mem[0]["post"]
+    mu = float(post.weights @ np.log(post.gains))
+    assert abs(mu - np.log(u.damping_gain)) < 0.2, (mu, u.damping_gain)
+    assert info["certified"]
+    assert info["bearing_number"] >= 0.95 * u.best_stable_operating_point().bearing_number
+    env.close()
+
+
 def test_make_rule_names():
     env = gym.make("gfb_env/RunUp-v1")
     for name in RULE_NAMES:

@@ -159,10 +159,10 @@ def test_recovery_survival_weighs_down_the_gains_outside_the_window():
     env = gym.make("gfb_env/WhirlRecovery-v1")
     pol = RecoveryAgent(env.unwrapped)
     m = pol._new_memory()
-    m["d_start"] = 2.0
+    m["d_start"] = 3.2  # (the task's start command d_opt = 2.24 keeps every gain of its prior inside)
     pol._survived(m)
     post = m["post"]
-    actual = post.gains * 2.0
+    actual = post.gains * 3.2
     inside = (actual >= 1.2) & (actual <= 5.0)
     assert inside.any() and (~inside).any()
     lw = post.log_w - post.log_w.max()
@@ -197,7 +197,7 @@ def test_recovery_decisions_depend_only_on_the_observations():
     env_a, env_b = gym.make("gfb_env/WhirlRecovery-v1"), gym.make("gfb_env/WhirlRecovery-v1")
     pol_a, pol_b = make_rule("recovery", env_a), make_rule("recovery", env_b)
     obs, _ = env_a.reset(seed=0)
-    env_b.reset(seed=4)  # another hidden gain: 2.77 (seed 0 draws 1.37)
+    env_b.reset(seed=3)  # another hidden gain: 0.66 (seed 0 draws 1.21)
     assert abs(np.log(env_b.unwrapped.damping_gain / env_a.unwrapped.damping_gain)) > 0.5
     for k in range(30):
         a, _ = pol_a.predict(obs, episode_start=(k == 0))
@@ -211,7 +211,7 @@ def test_recovery_decisions_depend_only_on_the_observations():
 
 @pytest.mark.parametrize("seed", [0, 6])
 def test_recovery_learns_the_gain_and_ends_certified(seed):
-    """Training seeds 0 (g = 1.37) and 6 (g = 1.09): after the dip, the survival evidence, the decays and
+    """Training seeds 0 (g = 1.21) and 6 (g = 1.08): after the dip, the survival evidence, the decays and
     the unbalance probe, the posterior mean of ln g is within 0.2 of the truth and the end is certified
     within 5 % of lambda_best."""
     env = gym.make("gfb_env/WhirlRecovery-v1")

@@ -20,10 +20,12 @@ from gfb_env.params import BearingParameters
 
 __all__ = ["RunUpRandomizedEnv", "BestStableSpeedTable", "RandomizedRunUpTarget", "COMMAND_RANGE_RPM"]
 
-#: v1: the commanded speed is uniform in this absolute range for every drawn bearing (rpm); chosen from
-#: the task table so that about 42 % of the commands lie above the drawn bearing's best stable speed
-#: (measured in ``docs/envs.md``)
-COMMAND_RANGE_RPM = (34_000.0, 44_000.0)
+#: v1: the commanded speed is uniform in this absolute range for every drawn bearing (rpm), so it does
+#: not reveal the bearing; chosen so that about 80 % of the commands lie above the drawn plant's best
+#: stable speed (measured in ``docs/envs.md``): the task is mostly "as fast as stably possible", where
+#: knowing the boundary matters.  (First 34 000-44 000 rpm: 58 % of the commands were feasible, every
+#: rule reached them, and the oracle led the best rule by only 0.14-0.15 normalised.)
+COMMAND_RANGE_RPM = (40_000.0, 60_000.0)
 
 
 @dataclass(frozen=True)
@@ -128,8 +130,8 @@ class RunUpRandomizedEnv(RunUpEnv):
 
     As RunUp-v1 (hidden damping gain, observed command, horizon 250, certificate, reward, costs) on the
     drawn bearing.  The command ``n_cmd`` is drawn in absolute rpm, uniformly in ``command_range_rpm``
-    (default :data:`COMMAND_RANGE_RPM`, 34 000-44 000 rpm, the same for every draw, so it does not reveal
-    the bearing; 42 % of the commands lie above the drawn plant's best stable speed, measured on 100
+    (default :data:`COMMAND_RANGE_RPM`, 40 000-60 000 rpm, the same for every draw, so it does not reveal
+    the bearing; about 80 % of the commands lie above the drawn plant's best stable speed, measured on 100
     draws).  The hidden optimum is exact per episode (:meth:`best_stable_operating_point`, ~0.8 s, for
     oracles and evaluation); the env decides success without it, by one stability test at
     ``mean / (1 - tol)`` (~0.15 s, only when a certified episode ended below its command).  The
@@ -142,7 +144,8 @@ class RunUpRandomizedEnv(RunUpEnv):
     * v1 (issue 10): v0 on the instrumented machine with a damping gain in [0.5, 2].  Redefined in place
       by issue 11 (no benchmark result had been published on v1): gain in [0.316, 3.16], the commanded
       speed in absolute rpm, the fixed horizon, the certificate, the exact best stable point, costs;
-      then the on-target bonus (25 on success) added to the reward.
+      then the on-target bonus (25 on success) added to the reward and the command range moved from
+      34 000-44 000 to 40 000-60 000 rpm (most commands above the best stable speed).
     """
 
     def __init__(

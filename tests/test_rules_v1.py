@@ -246,3 +246,36 @@ def test_cli_refuses_test_seeds_and_missing_arguments(capsys):
     assert main(["--env", "gfb_env/RunUp-v1", "--rule", "naive", "--seeds", "10000", "10002"]) == 2
     assert "training/validation seeds only" in capsys.readouterr().out
     assert main(["--seeds", "0", "1"]) == 2
+
+
+def test_creep_raises_the_set_point_until_the_time_runs_short():
+    """The optional boundary creep (off by default): from the model's set-point below the command it
+    raises the set-point by creep_rate per step at a frozen damping, holds creep_margin below a whirl
+    onset, and keeps the highest calm speed when the time runs short."""
+    from gfb_agents.rules_v1 import MarginSearchAgent
+
+    env = gym.make("gfb_env/RunUp-v1")
+    u = env.unwrapped
+    pol = MarginSearchAgent(u, creep_rate=0.01, creep_margin=0.015)
+    assert MarginSearchAgent(u).creep_rate == 0.0  # the default rule does not creep
+    m = pol._new_memory()
+    m.update({"setpoint": 30000.0, "mode": "run", "d_cmd": 1.3, "cmd_rpm": 40000.0, "k": 20})
+    obs = np.zeros(u.observation_space.shape, dtype=np.float32)
+    obs[u.observation_layout.index("time_left")] = 0.8  # 200 steps left
+    pol._creep(m, obs, 30000.0)
+    assert m["setpoint"] == pytest.approx(30300.0) and m["creep"]["d"] == 1.3
+    m["d_cmd"] = 2.0  # a new decision may not move the damping during the search
+    pol._creep(m, obs, 30300.0)
+    assert m["setpoint"] == pytest.approx(30603.0) and m["d_cmd"] == 1.3
+    pol._creep(m, obs, 29000.0)  # not there yet: no further rise
+    assert m["setpoint"] == pytest.approx(30603.0)
+    # out of time without an onset: the highest speed crept is the final one
+    obs[u.observation_layout.index("time_left")] = 0.05
+    pol._creep(m, obs, 30603.0)
+    assert m["creep"]["final_rpm"] == pytest.approx(30603.0) and m["setpoint"] == pytest.approx(30603.0)
+    # an onset (set by the whirl guard) holds creep_margin below it
+    m["creep"].update({"onset_rpm": 30500.0, "final_rpm": 30500.0 * (1 - 0.015)})
+    m["setpoint"] = 33000.0
+    pol._creep(m, obs, 30000.0)
+    assert m["setpoint"] == pytest.approx(30042.5)
+    env.close()

@@ -448,6 +448,13 @@ class TrainConfig:
         _check_count("frame_stack", self.frame_stack)
         if self.frame_stack > 1 and algo == "recurrentppo":
             raise ValueError("frame_stack and recurrentppo exclude each other (the LSTM is the memory)")
+        if self.frame_stack > 1 and algo == "sac":
+            # SAC's replay buffer stores VecNormalize's original observations, which lie inside the
+            # frame stack (unstacked): the first stored transition failed on a shape mismatch
+            raise ValueError(
+                "frame_stack: not with sac (its replay buffer stores the unstacked original "
+                "observations); memory: --algo recurrentppo, or ppo with --frame-stack"
+            )
         if self.n_envs is not None and self.n_envs > seeds_mod.MAX_TRAIN_ENVS:
             raise ValueError(f"n_envs must be at most {seeds_mod.MAX_TRAIN_ENVS}, got {self.n_envs}")
         if self.vec_env not in VEC_ENVS:

@@ -341,6 +341,7 @@ def _exit_2_one_line(main, argv, fragment, capsys):
         (["--algo", "ppo", "--seeds", "3-x"], "--seeds must look like"),
         (["--algo", "ppo", "--seed", "1", "--seeds", "0-4"], "exclude each other"),
         (["--algo", "recurrentppo", "--frame-stack", "4"], "frame_stack and recurrentppo"),
+        (["--algo", "sac", "--frame-stack", "4"], "frame_stack: not with sac"),
     ],
 )
 def test_train_cli_rejects_bad_arguments(capsys, tmp_path, argv, fragment):

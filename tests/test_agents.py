@@ -386,7 +386,7 @@ def test_benchmark_quick_writes_table_and_resumes_from_its_cache(tmp_path, capsy
     assert all(r["episodes"] == "2" and r["split"] == "test" for r in rows)
     for r in rows:
         if r["kind"] == "naive" and r["normalized_iqm"] != "":
-            assert float(r["normalized_iqm"]) == 0.0
+            assert float(r["normalized_iqm"]) == pytest.approx(0.0, abs=1e-12)
     assert "| task | agent |" in (tmp_path / "benchmark_agents.md").read_text()
     assert (tmp_path / "benchmark_agents_paths.png").stat().st_size > 10_000
     meta = json.loads((tmp_path / "benchmark_agents.json").read_text())

@@ -9,8 +9,10 @@ capped at 0.95 Lambda_c(D_W = 1) of the nominal bearing); also the wall time per
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python -m gfb_experiments.v1_task_check \\
         --seeds 0-49 --out results/v1_task_check/summary.json
 
-Writes one JSON summary (per task and agent: mean return, its 95 % CI half width, success rate,
-certified rate, touchdowns, mean episode cost, ms per step).
+``--agents oracle_v1,naive,margin_search`` plays v1 rules on the same seeds (the development tables of
+docs/agents.md); ``--gain-window`` only scans WhirlRecovery-v1's touchdowns over a grid of hidden gains
+(docs/envs.md).  Writes one JSON summary (per task and agent: mean return, its 95 % CI half width,
+success rate, certified rate, touchdowns, mean episode cost, ms per step).
 """
 
 from __future__ import annotations
@@ -135,6 +137,47 @@ def step_cost(episodes: int = 6, steps: int = 150) -> dict:
     return out
 
 
+def gain_window(n_gains: int = 15, seeds: tuple[int, ...] = (0, 1, 2, 3), steps: int = 40) -> dict:
+    """WhirlRecovery-v1 with the hidden gain fixed on a grid over the run-up tasks' prior [0.316, 3.16]:
+    the control step of touchdown (0 = none within ``steps``) when the machine decelerates at the motor
+    limit keeping its start command d_opt, per gain and seed -- the measurement behind
+    ``V1_WHIRL_RECOVERY_GAIN_RANGE`` (docs/envs.md)."""
+    import dataclasses
+
+    from gfb_env.envs import V1_DAMPING_GAIN_RANGE, V1_TASK
+
+    out = {}
+    for g in np.geomspace(*V1_DAMPING_GAIN_RANGE, n_gains):
+        act = dataclasses.replace(V1_TASK["damping_actuator"], gain=float(g), gain_range=None)
+        env = gym.make("gfb_env/WhirlRecovery-v1", damping_actuator=act)
+        u = env.unwrapped
+        a = np.array([-1.0, u.action_from_damping(u.constants["d_opt"])], dtype=np.float32)
+        steps_to_touchdown = []
+        for seed in seeds:
+            env.reset(seed=seed)
+            k, info, done = 0, {}, False
+            while k < steps and not done:
+                _, _, term, trunc, info = env.step(a)
+                k, done = k + 1, term or trunc
+            lost = info.get("termination_reason") in ("touchdown", "solver_failure")
+            steps_to_touchdown.append(k if lost else 0)
+        out[f"{g:.4f}"] = steps_to_touchdown
+        print(f"g = {g:.3f}: touchdown step per seed {steps_to_touchdown}", flush=True)
+        env.close()
+    return {"seeds": list(seeds), "steps": steps, "touchdown_step_by_gain": out}
+
+
+def make_agent(name: str, env: gym.Env):
+    """``oracle_v1``, ``naive`` or a v1 rule of :func:`gfb_agents.rules_v1.make_rule` for ``env``."""
+    if name == "oracle_v1":
+        return CommandedOracle(env)
+    if name == "naive":
+        return make_naive(env)
+    from gfb_agents.rules_v1 import make_rule
+
+    return make_rule(name, env)
+
+
 def summarise(rows: list[dict]) -> dict:
     r = np.array([x["return"] for x in rows])
     n = len(r)
@@ -172,7 +215,18 @@ def main(argv: list[str] | None = None) -> None:
     )
     p.add_argument("--step-cost", action="store_true", help="only the wall time per step, v1 against v0")
     p.add_argument("--no-shocks", action="store_true", help="the tasks without base shocks (an ablation)")
+    p.add_argument(
+        "--agents", default="oracle_v1,naive", help="comma-separated: oracle_v1, naive and v1 rule names"
+    )
+    p.add_argument(
+        "--gain-window", action="store_true", help="only WhirlRecovery-v1's touchdowns over a gain grid"
+    )
     a = p.parse_args(argv)
+    if a.gain_window:
+        stats = gain_window()
+        Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(a.out).write_text(json.dumps(stats, indent=1))
+        return
     if a.step_cost:
         stats = step_cost()
         print(stats)
@@ -186,6 +240,11 @@ def main(argv: list[str] | None = None) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(stats, indent=1))
         return
+    from gfb_agents.rules_v1 import RULE_NAMES
+
+    unknown = [n for n in a.agents.split(",") if n not in ("oracle_v1", "naive", *RULE_NAMES)]
+    if unknown:
+        p.error(f"--agents: unknown {', '.join(unknown)} (known: oracle_v1, {', '.join(RULE_NAMES)})")
     seeds = parse_seeds(a.seeds)
     if min(seeds) < 0 or max(seeds) > 99:
         p.error("--seeds: only training seeds 0-99")
@@ -200,10 +259,11 @@ def main(argv: list[str] | None = None) -> None:
                 )
                 print(env_id, m, res[f"oracle_margin_{m:g}"], flush=True)
         else:
-            for agent in (CommandedOracle(env), make_naive(env)):
+            for name in a.agents.split(","):
+                agent = make_agent(name, env)
                 rows = [play(env, agent, s) for s in seeds]
-                res[agent.name] = {**summarise(rows), "episodes_detail": rows}
-                print(env_id, agent.name, summarise(rows), flush=True)
+                res[name] = {**summarise(rows), "episodes_detail": rows}
+                print(env_id, name, summarise(rows), flush=True)
         out["tasks"][env_id] = res
         env.close()
     path = Path(a.out)

@@ -45,6 +45,12 @@ DATA_FILES = (
         for r in range(5)
         for f in ("model.zip", "vecnormalize.pkl", "policy.json")
     ),
+    # and every other committed policy file the evaluator reads (SAC, RecurrentPPO, ...)
+    *sorted(
+        "gfb_agents/" + str(f.relative_to(REPO / "agents"))
+        for f in (REPO / "agents" / "policies").rglob("*")
+        if f.suffix in (".zip", ".pkl", ".json")
+    ),
 )
 
 CHECKS = textwrap.dedent(

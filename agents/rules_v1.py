@@ -253,7 +253,7 @@ def choose_operating_point(
     p = np.clip((lams - lam_ref) / max(lam_cmd - lam_ref, 1e-9), 0.0, 1.0)
     # the success test's target per gain: the true boundary (level 0), best over the damping range
     lc0 = lc if level == 0.0 else table.critical(posterior.gains[:, None] * ds[None, :], 0.0)
-    goal = (1.0 - tolerance) * np.minimum(lam_cmd, np.nanmax(lc0, axis=1))  # (n_g,)
+    goal = (1.0 - tolerance) * np.minimum(lam_cmd, lc0.max(axis=1))  # (n_g,)
     hit = lams[None, :] >= goal[:, None]  # (n_g, n_lambda)
     best = (float(ds[0]), float(lams[0]), -np.inf)
     for j in range(n_damping):

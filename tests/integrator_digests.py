@@ -132,7 +132,7 @@ def case_snapshot() -> dict[str, str]:
 
 
 def case_envs() -> dict[str, str]:
-    """30 random actions (seed 0) in each registered task."""
+    """30 random actions (seed 0) in each v0 task (retired ids: kept only for the record)."""
     import gymnasium as gym
 
     import gfb_env  # noqa: F401  (registers the tasks)
@@ -158,6 +158,51 @@ def case_envs() -> dict[str, str]:
     return out
 
 
+def _info_digest(info: dict) -> list:
+    """The info dict as sorted (key, value) text: every key and value, bit for bit (repr of floats)."""
+    return sorted((k, repr(v)) for k, v in info.items())
+
+
+def case_envs_v1() -> dict[str, str]:
+    """40 random actions (seed 3) in each v1 task, single env and native vector env (3 envs, autoreset):
+    observations, rewards, flags and every info entry."""
+    import gymnasium as gym
+
+    import gfb_env  # noqa: F401  (registers the tasks)
+
+    out = {}
+    for env_id in ("gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1"):
+        env = gym.make(env_id)
+        obs, info = env.reset(seed=3)
+        env.action_space.seed(3)
+        rows, flags, infos = [obs], [], [_info_digest(info)]
+        for _ in range(40):
+            obs, rew, term, trunc, info = env.step(env.action_space.sample())
+            rows.append(np.append(obs, rew))
+            flags.append([term, trunc])
+            infos.append(_info_digest(info))
+            if term or trunc:
+                obs, info = env.reset()
+                rows.append(obs)
+                infos.append(_info_digest(info))
+        out[f"{env_id}.observations"] = digest(np.concatenate(rows))
+        out[f"{env_id}.flags"] = digest(flags)
+        out[f"{env_id}.info"] = digest(repr(infos))
+        env.close()
+        venv = gym.make_vec(env_id, num_envs=3)
+        obs, info = venv.reset(seed=5)
+        venv.action_space.seed(5)
+        rows, infos = [obs.ravel()], [repr(sorted((k, repr(v)) for k, v in info.items()))]
+        for _ in range(25):
+            obs, rew, term, trunc, info = venv.step(venv.action_space.sample())
+            rows.append(np.concatenate([obs.ravel(), rew, term, trunc]))
+            infos.append(repr(sorted((k, repr(v)) for k, v in info.items())))
+        out[f"{env_id}.vector.observations"] = digest(np.concatenate(rows))
+        out[f"{env_id}.vector.info"] = digest(repr(infos))
+        venv.close()
+    return out
+
+
 INTEGRATOR_CASES: dict[str, Callable[[], dict[str, str]]] = {
     "benchmark": case_benchmark,
     "ramps": case_ramps,
@@ -173,7 +218,7 @@ PLATFORM_KEY = "_platform"
 
 def compute(envs: bool = False) -> dict[str, dict[str, str]]:
     """``{case: {item: digest}}`` for the integrator cases, or for the env cases."""
-    cases = {"envs": case_envs} if envs else INTEGRATOR_CASES
+    cases = {"envs_v1": case_envs_v1} if envs else INTEGRATOR_CASES
     return {name: f() for name, f in cases.items()}
 
 

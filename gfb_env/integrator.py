@@ -189,8 +189,8 @@ _NO_INDICES = np.zeros(0, dtype=np.int64)
 _EXTREMES_START = np.array([np.inf, np.inf, -np.inf, np.inf, -np.inf, 0.0, np.nan, np.nan, np.nan])
 
 
-class _Call(NamedTuple):
-    """One prepared call of the compiled loop (:meth:`TrapezoidalIntegrator._prepare`): its arguments
+class PreparedCall(NamedTuple):
+    """One prepared call of the compiled loop (:meth:`TrapezoidalIntegrator.prepare`): its arguments
     and what :meth:`TrapezoidalIntegrator._finish` needs besides the loop's outputs."""
 
     st: StepperState  # the state the call starts from (its arrays are advanced in place)
@@ -1260,13 +1260,11 @@ class TrapezoidalIntegrator:
         ``status == "failed"`` / ``"max_steps"`` when ``raise_on_failure`` is False); the state is
         then the last accepted one, never NaN.
 
-        Three parts: :meth:`_prepare` (Python: checks and the compiled call's arguments), the compiled
+        Three parts: :meth:`prepare` (Python: checks and the compiled call's arguments), the compiled
         loop :func:`_advance`, :meth:`_finish` (Python: the new :class:`StepperState` and the result).
         :func:`advance_batch` runs the same parts for many integrators with one compiled call.
         """
-        call = self._prepare(
-            tau_end, bearing_number, foil_damping, record_interval, record_indices, max_steps
-        )
+        call = self.prepare(tau_end, bearing_number, foil_damping, record_interval, record_indices, max_steps)
         code, clock = _call_compiled(
             _advance, (self._factorization.size_tag, call.forcing is None),
             call.st.arrays, call.st.clock, call.schedule, self._kernel_args, self._jacobian,
@@ -1290,7 +1288,7 @@ class TrapezoidalIntegrator:
         self._record_key, self._record_idx = key, rec_idx
         return rec_idx
 
-    def _prepare(
+    def prepare(
         self,
         tau_end: float,
         bearing_number: float | None,
@@ -1298,7 +1296,7 @@ class TrapezoidalIntegrator:
         record_interval: float | None,
         record_indices: np.ndarray | None,
         max_steps: int,
-    ) -> _Call:
+    ) -> PreparedCall:
         """Check one call's arguments and build the compiled loop's (nothing is integrated yet; the
         unbalance's k at the start may move to this call's theta'', see :meth:`_forcing_of_call`)."""
         st = self._stepper
@@ -1341,7 +1339,7 @@ class TrapezoidalIntegrator:
         )  # fmt: skip
         span = float(tau_end) - t0
         forcing, rate = self._forcing_of_call(st, span, lam0, lam1)
-        return _Call(
+        return PreparedCall(
             st=st,
             schedule=(float(tau_end), lam0, lam1, dw0, dw1),
             span=span,
@@ -1358,7 +1356,7 @@ class TrapezoidalIntegrator:
 
     def _finish(
         self,
-        call: _Call,
+        call: PreparedCall,
         code: int,
         clock: tuple[float, float, float, float, int],
         counts: list[int],
@@ -1596,11 +1594,11 @@ class BatchAdvance:
         ):
             if len(v) != n:
                 raise ValueError(f"{name}: {len(v)} values for {n} integrators")
-        calls: list[_Call] = []
+        calls: list[PreparedCall] = []
         try:
             for k, integ in enumerate(integs):
                 calls.append(
-                    integ._prepare(
+                    integ.prepare(
                         tau_end[k],
                         bearing_number[k],
                         foil_damping[k],
@@ -1619,8 +1617,10 @@ class BatchAdvance:
                     raise IntegrationError(r.message)
         return results
 
-    def run_prepared(self, integs: list[TrapezoidalIntegrator], calls: list[_Call]) -> list[AdvanceResult]:
-        """The compiled part and the finish of calls prepared by ``integs[k]._prepare(...)`` (each
+    def run_prepared(
+        self, integs: list[TrapezoidalIntegrator], calls: list[PreparedCall]
+    ) -> list[AdvanceResult]:
+        """The compiled part and the finish of calls prepared by ``integs[k].prepare(...)`` (each
         integrator once; used by the vector env, which prepares each env's call itself)."""
         n = len(calls)
         _choose_threading_layer()
@@ -1700,7 +1700,7 @@ class BatchAdvance:
         _call_compiled(kernel, key, *args)
 
     @staticmethod
-    def _one(it: TrapezoidalIntegrator, c: _Call) -> AdvanceResult:
+    def _one(it: TrapezoidalIntegrator, c: PreparedCall) -> AdvanceResult:
         code, clock = _call_compiled(
             _advance, (it._factorization.size_tag, c.forcing is None),
             c.st.arrays, c.st.clock, c.schedule, it._kernel_args, it._jacobian, it._factorization,

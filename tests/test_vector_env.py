@@ -147,9 +147,9 @@ def test_a_solver_failure_in_one_env_is_handled_like_the_single_env(env_id, monk
     def fail(*a, **k):
         raise IntegrationError("step size fell below min_step")
 
-    # both the single env's advance and the batch prepare each call with _prepare
-    monkeypatch.setattr(native.envs[1]._integ, "_prepare", fail)
-    monkeypatch.setattr(sync.envs[1].unwrapped._integ, "_prepare", fail)
+    # both the single env's advance and the batch prepare each call with prepare
+    monkeypatch.setattr(native.envs[1]._integ, "prepare", fail)
+    monkeypatch.setattr(sync.envs[1].unwrapped._integ, "prepare", fail)
     a = np.full((N, 2), 0.5, np.float32)
     res = native.step(a)
     _assert_same(res, sync.step(a))
@@ -169,7 +169,7 @@ def test_a_programming_error_in_the_plant_propagates(monkeypatch):
     def bug(*a, **k):
         raise TypeError("a programming error")
 
-    monkeypatch.setattr(native.envs[0]._integ, "_prepare", bug)
+    monkeypatch.setattr(native.envs[0]._integ, "prepare", bug)
     with pytest.raises(TypeError, match="programming error"):
         native.step(np.zeros((2, 2), np.float32))
 

@@ -341,7 +341,7 @@ class GFBVectorEnv(VectorEnv):
         for k, (env, (lam, dw)) in enumerate(zip(envs, commands, strict=True)):
             integ = env._integ
             try:
-                call = integ._prepare(
+                call = integ.prepare(
                     integ.tau + env.control_interval, lam, dw, env.record_interval, env._probe_idx,
                     DEFAULT_MAX_STEPS,
                 )  # fmt: skip

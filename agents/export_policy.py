@@ -20,7 +20,7 @@ from pathlib import Path
 
 from gfb_agents.evaluate import POLICIES_DIR
 from gfb_env import jsonio
-from gfb_env._cli_common import OneLineParser
+from gfb_env.scripting import OneLineParser
 
 __all__ = ["export_policy"]
 

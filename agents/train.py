@@ -57,8 +57,8 @@ from gfb_agents import seeds as seeds_mod
 from gfb_agents.evaluate import algo_class
 from gfb_agents.seeds import VALIDATION
 from gfb_env import jsonio
-from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env._threads import set_thread_defaults
+from gfb_env.scripting import OneLineParser, check_output_dir
 
 __all__ = [
     "ALGOS",

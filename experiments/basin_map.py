@@ -28,12 +28,12 @@ from pathlib import Path
 import numpy as np
 
 from gfb_env import BearingParameters, jsonio
-from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.analysis.spectrum import amplitude_spectrum
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.forcing import Unbalance
 from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel
+from gfb_env.scripting import OneLineParser, check_output_dir
 
 #: K_W = 1, D_W = 1 on 79x7 (results/hysteresis_map/summary.json)
 FOLD_BEARING_NUMBER = 0.5392
@@ -176,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _plot(rows, path: Path, grid: str, duration: float) -> None:
-    from gfb_env._plotting import plt
+    from gfb_env.plotting import plt
 
     lam = np.array([r["bearing_number"] for r in rows])
     lo = np.array([np.nan if r["stays_below"] is None else r["stays_below"] for r in rows])

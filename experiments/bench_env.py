@@ -31,8 +31,8 @@ import numpy as np
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_env import jsonio
-from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.envs import ENV_IDS
+from gfb_env.scripting import OneLineParser, check_output_dir
 
 
 def _episode(env: gym.Env, policy, seed: int, max_steps: int | None = None) -> dict:

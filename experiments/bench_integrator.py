@@ -30,8 +30,8 @@ import numpy as np  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 
 from gfb_env import jsonio  # noqa: E402
-from gfb_env._cli_common import OneLineParser, check_output_dir  # noqa: E402
 from gfb_env.integrator import TrapezoidalIntegrator  # noqa: E402
+from gfb_env.scripting import OneLineParser, check_output_dir  # noqa: E402
 from gfb_experiments.convergence_study import benchmark_case  # noqa: E402
 
 LAMBDA, DAMPING, TAU_END, WINDOW = 0.6, 1.0, 3000.0, 500.0

@@ -21,7 +21,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from gfb_env._cli_common import OneLineParser
+from gfb_env.scripting import OneLineParser
 
 CHILD = r"""
 import json, time

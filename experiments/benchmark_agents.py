@@ -53,8 +53,8 @@ from gfb_agents.ladder import AgentEntry, ladder_for, learned_entries, naive_for
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.seeds import MIN_TEST_EPISODES, SPLITS, split_seeds
 from gfb_env import jsonio
-from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.envs import ENV_IDS
+from gfb_env.scripting import OneLineParser, check_output_dir
 from gfb_experiments.benchmark_stats import (
     DEFAULT_REPS,
     interval_estimates,

@@ -19,10 +19,10 @@ import numpy as np
 from tqdm import tqdm
 
 from gfb_env import jsonio
-from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel
+from gfb_env.scripting import OneLineParser, check_output_dir
 
 
 def benchmark_case(grid: str = "79x7"):

@@ -21,12 +21,12 @@ import time
 from pathlib import Path
 
 from gfb_env import jsonio
-from gfb_env._cli_common import OneLineParser, check_output_dir
-from gfb_env.cli import equilibrium_summary
 from gfb_env.cli import main as gfb_main
+from gfb_env.cli.static import equilibrium_summary
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import GFBModel
 from gfb_env.params import BearingParameters
+from gfb_env.scripting import OneLineParser, check_output_dir
 
 
 def run(out: Path, duration: float) -> dict:

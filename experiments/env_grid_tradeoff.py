@@ -14,12 +14,12 @@ from __future__ import annotations
 import time
 
 from gfb_env import jsonio
-from gfb_env._cli_common import OneLineParser
 from gfb_env.analysis.task_constants import critical_bearing_number_or_bound
 from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel, Grid
+from gfb_env.scripting import OneLineParser
 
 
 def measure(grid: str) -> dict:

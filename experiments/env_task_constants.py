@@ -29,7 +29,6 @@ import time
 import numpy as np
 
 from gfb_env import jsonio
-from gfb_env._cli_common import OneLineParser
 from gfb_env.analysis.maps import optimum_from_curve
 from gfb_env.analysis.task_constants import (
     WHIRL_FACTOR,
@@ -40,6 +39,7 @@ from gfb_env.analysis.task_constants import (
 from gfb_env.envs._data import NOMINAL_BEARING, TASK_CONSTANTS_PATH
 from gfb_env.model import GFBModel, Grid
 from gfb_env.provenance import platform_fingerprint
+from gfb_env.scripting import OneLineParser
 
 D_MIN, D_MAX = 0.1, 10.0
 DAMPINGS = np.geomspace(D_MIN, D_MAX, 13)

@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from gfb_env import jsonio
-from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.analysis.maps import compute_stability_map, write_stability_map
+from gfb_env.scripting import OneLineParser, check_output_dir
 
 
 def main(argv: list[str] | None = None) -> int:

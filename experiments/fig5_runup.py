@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from gfb_env import GFBModel, Grid, TrapezoidalIntegrator, find_equilibrium, jsonio
-from gfb_env._cli_common import OneLineParser, check_output_dir
+from gfb_env.scripting import OneLineParser, check_output_dir
 
 
 def run_case(

@@ -21,8 +21,8 @@ import numpy as np
 from tqdm import tqdm
 
 from gfb_env import GFBModel, Grid, jsonio
-from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.analysis import ShootingError, periodic_orbit_from_simulation, settle_whirl
+from gfb_env.scripting import OneLineParser, check_output_dir
 
 LAMBDA = 0.6
 K_W = 1.0

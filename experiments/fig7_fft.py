@@ -19,8 +19,8 @@ import numpy as np
 from tqdm import tqdm
 
 from gfb_env import GFBModel, Grid, TrapezoidalIntegrator, jsonio
-from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.analysis import amplitude_spectrum, dominant_frequency, settle_whirl
+from gfb_env.scripting import OneLineParser, check_output_dir
 
 LAMBDA = 0.6
 K_W = 1.0

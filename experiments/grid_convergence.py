@@ -13,9 +13,9 @@ import argparse
 import csv
 from pathlib import Path
 
-from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import GFBModel, Grid
+from gfb_env.scripting import OneLineParser, check_output_dir
 
 GRIDS = [(79, 7), (79, 9), (79, 13), (79, 25), (157, 7), (157, 13), (157, 25), (313, 25)]
 

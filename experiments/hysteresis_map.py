@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from gfb_env import BearingParameters, jsonio
-from gfb_env._cli_common import OneLineParser, check_output_dir
 from gfb_env.analysis import compute_hysteresis_map, write_hysteresis_map
+from gfb_env.scripting import OneLineParser, check_output_dir
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -17,7 +17,7 @@ import json
 from pathlib import Path
 
 from gfb_agents.evaluate import POLICIES_DIR
-from gfb_env._cli_common import OneLineParser
+from gfb_env.scripting import OneLineParser
 
 __all__ = ["training_rows", "markdown"]
 

@@ -28,7 +28,7 @@ import numpy as np
 import gfb_env.envs  # noqa: F401
 from gfb_agents.ladder import make_naive
 from gfb_agents.oracle import CommandedOracle
-from gfb_env._cli_common import OneLineParser
+from gfb_env.scripting import OneLineParser
 
 V1_IDS = ("gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1")
 

@@ -22,15 +22,46 @@ with its own ``T = 1.590e-4 s`` that is 7.95 s.  We use the formulas, never the 
 from __future__ import annotations
 
 import math
+import os
+import stat
 import tomllib
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
-__all__ = ["BearingParameters", "NondimensionalParameters", "check_positive"]
+__all__ = [
+    "BearingParameters",
+    "MAX_BEARING_FILE_BYTES",
+    "NondimensionalParameters",
+    "check_positive",
+    "shipped_bearing_names",
+    "shipped_bearing_path",
+]
 
 _RPM_TO_RAD_S = 2.0 * math.pi / 60.0
+#: Largest bearing file read (1 MiB): a bearing file is a few dozen lines; anything larger (a device,
+#: a log file given by mistake) is refused before it is read.
+MAX_BEARING_FILE_BYTES = 1 << 20
+#: The bearing files shipped with the package (``gfb_env/data/bearings/NAME.toml``).
+_SHIPPED_BEARINGS = Path(__file__).resolve().parent / "data" / "bearings"
+
+
+def shipped_bearing_names() -> tuple[str, ...]:
+    """Names of the bearing files shipped with the package (``table1``, ``small_turbocompressor``)."""
+    return tuple(sorted(f.stem for f in _SHIPPED_BEARINGS.glob("*.toml")))
+
+
+def shipped_bearing_path(name: str) -> Path:
+    """The path of the shipped bearing file ``name`` (with or without ``.toml``).
+
+    Raises:
+        ValueError: naming the shipped bearings when there is none of that name.
+    """
+    stem = name[: -len(".toml")] if name.endswith(".toml") else name
+    if stem not in shipped_bearing_names():
+        raise ValueError(f"no shipped bearing {name!r} (shipped: {', '.join(shipped_bearing_names())})")
+    return _SHIPPED_BEARINGS / f"{stem}.toml"
 
 
 def check_positive(name: str, value: float) -> float:
@@ -312,26 +343,50 @@ class BearingParameters:
 
     @classmethod
     def from_toml(cls, path: str | Path) -> BearingParameters:
-        """A bearing from a TOML file of top-level ``field = number`` lines (see ``examples/bearings/``).
+        """A bearing from a TOML file of top-level ``field = number`` lines (the shipped ones are in
+        ``gfb_env/data/bearings/``, see :func:`shipped_bearing_path`).
 
         Keys are the field names of this class (SI units as in their names); missing keys take
         Table 1.  Raises ``ValueError`` (one line naming the file and the key) for a missing or
-        unreadable file, a TOML syntax error, an unknown key or a bad value."""
+        unreadable file, a device, pipe or socket, a file over :data:`MAX_BEARING_FILE_BYTES`, a TOML
+        syntax error (nesting too deep included), an unknown key or a bad value."""
         p = Path(path).expanduser()
         try:
-            text = p.read_bytes().decode("utf-8")
+            # O_NONBLOCK: opening a named pipe must not wait for a writer; fstat then refuses it
+            fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
         except FileNotFoundError:
             raise ValueError(f"{path}: no such file") from None
         except IsADirectoryError:
             raise ValueError(f"{path}: is a folder, not a bearing file") from None
-        except UnicodeDecodeError:
-            raise ValueError(f"{path}: not a UTF-8 text (TOML) file") from None
         except OSError as exc:
             raise ValueError(f"{path}: cannot read ({exc.strerror})") from None
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            os.close(fd)
+            raise ValueError(f"{path}: is a folder, not a bearing file")
+        with os.fdopen(fd, "rb") as fh:
+            if not stat.S_ISREG(st.st_mode):
+                raise ValueError(f"{path}: not a regular file (a device, pipe or socket), not a bearing file")
+            if st.st_size > MAX_BEARING_FILE_BYTES:
+                raise ValueError(
+                    f"{path}: {st.st_size} bytes, a bearing file has at most {MAX_BEARING_FILE_BYTES} bytes"
+                )
+            try:
+                raw = fh.read(MAX_BEARING_FILE_BYTES + 1)  # +1: a file that grew since fstat
+            except OSError as exc:
+                raise ValueError(f"{path}: cannot read ({exc.strerror})") from None
+        if len(raw) > MAX_BEARING_FILE_BYTES:
+            raise ValueError(f"{path}: a bearing file has at most {MAX_BEARING_FILE_BYTES} bytes")
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError:
+            raise ValueError(f"{path}: not a UTF-8 text (TOML) file") from None
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise ValueError(f"{path}: TOML syntax error: {str(exc).splitlines()[0]}") from None
+        except RecursionError:  # tomllib recurses once per nesting level of an array or table
+            raise ValueError(f"{path}: TOML syntax error: arrays or tables nested too deeply") from None
         return cls.from_mapping(data, source=str(path))
 
     def replace(self, **changes: float) -> BearingParameters:

@@ -322,22 +322,22 @@ def test_hostile_input_through_the_entry_point(tmp_path, a_file, argv, option):
 
 
 def test_check_output_dir_refuses_a_folder_without_write_permission(tmp_path, monkeypatch):
-    from gfb_env import _cli_common
+    from gfb_env import scripting
 
     # chmod does not stop root, so the permission answer itself is replaced
-    monkeypatch.setattr(_cli_common.os, "access", lambda path, mode: Path(path) != tmp_path)
+    monkeypatch.setattr(scripting.os, "access", lambda path, mode: Path(path) != tmp_path)
     with pytest.raises(ValueError, match=r"^--out .*: no permission to write in "):
-        _cli_common.check_output_dir(str(tmp_path / "new" / "deeper"), "--out")
+        scripting.check_output_dir(str(tmp_path / "new" / "deeper"), "--out")
     with pytest.raises(ValueError, match="no permission"):
-        _cli_common.check_output_dir(str(tmp_path), "--out")
+        scripting.check_output_dir(str(tmp_path), "--out")
     assert not (tmp_path / "new").exists()
     # a writable parent: accepted, and nothing is created
     monkeypatch.undo()
-    assert _cli_common.check_output_dir(str(tmp_path / "new"), "--out") == tmp_path / "new"
+    assert scripting.check_output_dir(str(tmp_path / "new"), "--out") == tmp_path / "new"
     assert not (tmp_path / "new").exists()
     (tmp_path / "trajectory.csv").mkdir()
     with pytest.raises(ValueError, match="cannot write"):
-        _cli_common.check_output_dir(str(tmp_path), "--out", ["trajectory.csv"])
+        scripting.check_output_dir(str(tmp_path), "--out", ["trajectory.csv"])
 
 
 def test_console_entry_point_help():

@@ -18,6 +18,7 @@ import subprocess
 import sys
 import textwrap
 import time
+import tomllib
 import venv
 import zipfile
 from pathlib import Path
@@ -29,6 +30,9 @@ DATA_FILES = (
     "gfb_env/envs/data/task_constants.json",
     "gfb_env/data/stability_map.csv",
     "gfb_env/data/hysteresis_map.csv",
+    # the bearing files `gfb --bearing NAME` reads
+    "gfb_env/data/bearings/table1.toml",
+    "gfb_env/data/bearings/small_turbocompressor.toml",
     "gfb_agents/hyperparams/ppo.yml",
     "gfb_agents/hyperparams/sac.yml",
     "gfb_agents/policies/RunUpRandomized_sac/model.zip",
@@ -158,6 +162,13 @@ def test_wheel_installs_and_runs_outside_the_repository(tmp_path):
     assert gfb.read_text().startswith(f"#!{py}"), gfb.read_text()[:200]
     params = json.loads(_run([str(gfb), "params", "--json"], work, 60).stdout)
     assert params, "gfb params --json printed nothing"
+    # issue 18, defect 1: the README's bearing files ship with the wheel and go by name
+    small = json.loads(
+        _run([str(gfb), "bearing", "--bearing", "small_turbocompressor", "--json"], work, 60).stdout
+    )
+    assert small["parameters"]["radius_m"] == 12.5e-3, small["parameters"]
+    version = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["version"]
+    assert _run([str(gfb), "--version"], work, 60).stdout.strip() == f"gfb {version}"
     print(f"wheel test: {time.perf_counter() - t0:.1f} s")
 
 

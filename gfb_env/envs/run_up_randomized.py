@@ -210,7 +210,8 @@ class RunUpRandomizedEnv(RunUpEnv):
         draw."""
         r = COMMAND_RANGE_RPM if self._command_range_rpm_arg is None else self._command_range_rpm_arg
         lo, hi = check_range("command_range_rpm", r)
-        if not self.start_speed_rpm < lo and hi <= self.speed_range_rpm[1]:
+        # both bounds: without the parentheses `not a and b` let (0, 1e12) through (issue 18, defect 15)
+        if not (self.start_speed_rpm < lo and hi <= self.speed_range_rpm[1]):
             raise ValueError(
                 f"command_range_rpm must lie above the start speed {self.start_speed_rpm:g} rpm and inside "
                 f"speed_range_rpm, got {r!r}"

@@ -16,20 +16,21 @@ from pathlib import Path
 import numpy as np
 
 from gfb_env import jsonio
-from gfb_env._cli_common import (
+from gfb_env.model import Grid
+from gfb_env.scripting import (
     add_bearing_option,
+    add_out_option,
     add_unbalance_options,
     check_eigen_grid,
-    check_output_dir,
     grid_type,
     in_range,
     int_range,
+    optional_output_dir,
     positive,
     unbalance_from_args,
 )
-from gfb_env.model import Grid
 
-__all__ = ["add_schedule_command", "cmd_schedule", "WHIRL_THRESHOLD"]
+__all__ = ["register", "cmd_schedule", "WHIRL_THRESHOLD"]
 
 #: The verified run counts as stable when its non-synchronous motion over the last 500 tau of the hold
 #: stays below this (units of C): the environments' stability threshold; a developed whirl is 0.3-1.2 C,
@@ -39,7 +40,7 @@ WHIRL_THRESHOLD = 0.05
 _FILES = ("schedule.csv", "stability_curve.csv", "schedule.png", "summary.json")
 
 
-def add_schedule_command(subparsers) -> None:
+def register(subparsers) -> None:
     """Add ``schedule`` to an :mod:`argparse` subparsers object."""
     p = subparsers.add_parser(
         "schedule",
@@ -141,18 +142,19 @@ def add_schedule_command(subparsers) -> None:
         help="finite-difference grid (default 31x7: Lambda_c within 1 %% of 79x7, docs/envs.md)",
     )
     add_unbalance_options(p)
-    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    add_out_option(p, _FILES)
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=cmd_schedule)
 
 
 def cmd_schedule(args: argparse.Namespace) -> int:
     """Handler of ``gfb schedule``."""
-    from gfb_env._cli_common import bearing_from_args
     from gfb_env.analysis.runup import bearing_number_rate
     from gfb_env.analysis.schedule import design_run_up_schedule, verify_schedule
     from gfb_env.model import GFBModel
+    from gfb_env.scripting import bearing_from_args
 
+    out = optional_output_dir(args.out, "--out", _FILES)
     b = bearing_from_args(args)
     dmin, dmax = args.damping_range
     if not dmin < dmax:
@@ -162,7 +164,6 @@ def cmd_schedule(args: argparse.Namespace) -> int:
     model = check_eigen_grid(
         GFBModel("viscoelastic", args.grid, bearing=b, foil_stiffness=args.foil_stiffness)
     )
-    out = check_output_dir(args.out, "--out", _FILES)
     # a balance grade is the permissible unbalance at the service speed: the target
     unbalance = unbalance_from_args(args, b, args.target_rpm)
     rate = bearing_number_rate(model, args.acceleration)
@@ -190,26 +191,28 @@ def cmd_schedule(args: argparse.Namespace) -> int:
         from gfb_env.analysis.response import unbalance_response
 
         lin = unbalance_response(model, sch.end_bearing_number, unbalance, sch.foil_damping, stability=False)
-    out.mkdir(parents=True, exist_ok=True)
-    path = sch.path()
-    with (out / "schedule.csv").open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["time_s", "speed_rpm", "foil_damping"])
-        for row in zip(path["time_s"], path["speed_rpm"], path["foil_damping"], strict=True):
-            w.writerow([f"{x:.8g}" for x in row])
-    fold_of = dict(zip(sch.fold_dampings.tolist(), sch.fold_bearing_numbers.tolist(), strict=True))
 
     def rpm(lam: float) -> float | None:
         return b.speed_rpm_at(lam) if math.isfinite(lam) else None
 
-    with (out / "stability_curve.csv").open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["foil_damping", "critical_speed_rpm", "fold_speed_rpm"])
-        for d, lc in zip(sch.dampings, sch.critical_bearing_numbers, strict=True):
-            f = fold_of.get(float(d), math.nan)
-            cells = [rpm(x) for x in (lc, f)]
-            w.writerow([f"{d:.6g}"] + ["" if c is None else f"{c:.1f}" for c in cells])
-    _plot(sch, out / "schedule.png")
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        path = sch.path()
+        with (out / "schedule.csv").open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["time_s", "speed_rpm", "foil_damping"])
+            for row in zip(path["time_s"], path["speed_rpm"], path["foil_damping"], strict=True):
+                w.writerow([f"{x:.8g}" for x in row])
+        fold_of = dict(zip(sch.fold_dampings.tolist(), sch.fold_bearing_numbers.tolist(), strict=True))
+
+        with (out / "stability_curve.csv").open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["foil_damping", "critical_speed_rpm", "fold_speed_rpm"])
+            for d, lc in zip(sch.dampings, sch.critical_bearing_numbers, strict=True):
+                f = fold_of.get(float(d), math.nan)
+                cells = [rpm(x) for x in (lc, f)]
+                w.writerow([f"{d:.6g}"] + ["" if c is None else f"{c:.1f}" for c in cells])
+        _plot(sch, out / "schedule.png")
     um = b.clearance_m * 1e6
     lam_end = sch.end_bearing_number
     verified_stable = ver.status == "done" and ver.max_whirl_amplitude < WHIRL_THRESHOLD
@@ -247,10 +250,11 @@ def cmd_schedule(args: argparse.Namespace) -> int:
         "linear_1x_xi_um": 0.0 if lin is None else lin.xi_amplitude * um,
         "linear_1x_eta_um": 0.0 if lin is None else lin.eta_amplitude * um,
         "notes": list(sch.notes),
-        "files": {k: str(out / k) for k in _FILES},
+        "files": {} if out is None else {k: str(out / k) for k in _FILES},
         "wall_time_s": time.perf_counter() - t0,
     }
-    (out / "summary.json").write_text(jsonio.dumps(d, indent=2))
+    if out is not None:
+        (out / "summary.json").write_text(jsonio.dumps(d, indent=2))
     if args.json:
         print(jsonio.dumps(d))
     else:
@@ -275,7 +279,11 @@ def cmd_schedule(args: argparse.Namespace) -> int:
             )
         for n in sch.notes:
             print(f"  note: {n}")
-        print(f"  wrote {out}/ ({d['wall_time_s']:.1f} s)")
+        print(
+            f"  wrote {out}/ ({d['wall_time_s']:.1f} s)"
+            if out
+            else f"  no files written: --out DIR ({d['wall_time_s']:.1f} s)"
+        )
     return 0 if verified_stable else 1
 
 

@@ -1,18 +1,55 @@
-"""Options and converters shared by the ``gfb`` subcommands (``cli`` and ``cli_analysis``)."""
+"""Helpers for command-line scripts built on the simulator: the ``gfb`` command uses them, and so do the
+experiments, the training and the benchmark scripts.  Public: a script of yours may use them too.
+
+- :class:`OneLineParser`: argparse with one-line usage errors and exit code 2.
+- argument checks, each naming its option: :func:`positive`, :func:`finite`, :func:`in_range`,
+  :func:`int_range`, :func:`float_list` (comma lists, empty items refused), :func:`grid_type`
+  (``NPHIxNZ``), :func:`bearing_file` (a bearing file or the name of a shipped one, :func:`load_bearing`);
+- output folders checked before any work: :func:`check_output_dir`; JSON out: :func:`write_json`;
+- option groups of the ``gfb`` subcommands and their readers: :func:`add_model_options`,
+  :func:`model_from_args`, :func:`add_speed_options`, :func:`bearing_number_from_args`,
+  :func:`add_unbalance_options`, :func:`unbalance_from_args`, :func:`add_speed_range_options`,
+  :func:`bearing_range_from_args`, :func:`add_start_options`, :func:`check_perturbation`,
+  :func:`check_eigen_grid`; the transient limits :data:`MAX_DURATION` and :data:`MAX_SAMPLES`.
+
+The convention every helper follows: bad input raises :class:`ValueError` (or argparse's
+``ArgumentTypeError``) with one line naming the option, before any computation; a script turns it
+into exit code 2.
+"""
 
 from __future__ import annotations
 
 import argparse
 import math
 import os
+import tempfile
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
+import numpy as np
+
+from gfb_env import jsonio
 from gfb_env.model import GFBModel, Grid, Structure
-from gfb_env.params import BearingParameters
+from gfb_env.params import BearingParameters, shipped_bearing_names, shipped_bearing_path
 
 __all__ = [
+    "MAX_DURATION",
+    "MAX_SAMPLES",
     "OneLineParser",
+    "add_out_option",
+    "add_speed_range_options",
+    "add_start_options",
+    "bearing_from_args",
+    "bearing_range_from_args",
+    "check_eigen_grid",
+    "check_perturbation",
+    "float_list",
+    "int_range",
+    "load_bearing",
+    "optional_output_dir",
+    "print_table",
+    "write_json",
     "add_model_options",
     "add_speed_options",
     "model_from_args",
@@ -102,31 +139,81 @@ def grid_type(text: str) -> Grid:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def bearing_file(text: str) -> BearingParameters:
-    """argparse type of ``--bearing``: :meth:`BearingParameters.from_toml` (read and validated while
-    the arguments are parsed, so a bad file is one line and exit 2 before any work)."""
+def float_list(text: str, name: str, *, positive: bool = True, max_items: int | None = None) -> list[float]:
+    """The numbers of a comma- (or space-) separated list ``text`` of option ``name``: finite (and
+    positive unless ``positive=False``), at least one, at most ``max_items``; an empty item
+    (``1,,2``, a trailing comma) is refused.
+
+    Raises:
+        ValueError: one line naming ``name``.
+    """
+    items = [x.strip() for x in str(text).split(",")]
+    words = [w for item in items for w in item.split()]
+    if not words:
+        raise ValueError(f"{name} must list at least one number, got {text!r}")
+    if any(not item for item in items):
+        raise ValueError(f"{name} has an empty item (two commas or a trailing comma), got {text!r}")
     try:
-        return BearingParameters.from_toml(text)
+        vals = [float(w) for w in words]
+    except ValueError:
+        raise ValueError(f"{name} must be a comma-separated list of numbers, got {text!r}") from None
+    kind = "positive numbers" if positive else "finite numbers"
+    if any(not math.isfinite(v) or (positive and not v > 0) for v in vals):
+        raise ValueError(f"{name} must be a list of {kind}, got {text!r}")
+    if max_items is not None and len(vals) > max_items:
+        raise ValueError(f"{name} must list at most {max_items} numbers, got {len(vals)}")
+    return vals
+
+
+def load_bearing(text: str | os.PathLike) -> BearingParameters:
+    """The bearing of a TOML file path, or of the NAME of a bearing shipped with the package
+    (:func:`gfb_env.params.shipped_bearing_names`: ``table1``, ``small_turbocompressor``) when no file
+    of that name exists.  Read by :meth:`BearingParameters.from_toml` (size and type checked before
+    reading).
+
+    Raises:
+        ValueError: one line naming the file (or the unknown name and the shipped ones).
+    """
+    text = os.fspath(text)
+    path = Path(text).expanduser()
+    if not os.path.lexists(path) and os.sep not in text and "/" not in text:
+        stem = text[: -len(".toml")] if text.endswith(".toml") else text
+        if stem in shipped_bearing_names():
+            return BearingParameters.from_toml(shipped_bearing_path(stem))
+        raise ValueError(
+            f"{text}: no such file, nor the name of a shipped bearing ({', '.join(shipped_bearing_names())})"
+        )
+    return BearingParameters.from_toml(path)
+
+
+def bearing_file(text: str) -> BearingParameters:
+    """argparse type of ``--bearing``: :func:`load_bearing` (a file or a shipped name, read and
+    validated while the arguments are parsed, so a bad file is one line and exit 2 before any work)."""
+    try:
+        return load_bearing(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def add_bearing_option(p: argparse.ArgumentParser) -> None:
-    """``--bearing FILE``: the dimensional bearing (default: the paper's Table 1)."""
+    """``--bearing FILE|NAME``: the dimensional bearing (default: the paper's Table 1)."""
     p.add_argument(
         "--bearing",
         type=bearing_file,
         default=BearingParameters(),
-        metavar="FILE",
+        metavar="FILE|NAME",
         help="bearing file (TOML, top-level keys = BearingParameters field names in SI units, missing "
-        "keys take Table 1; see examples/bearings/). Default: the paper's Table 1",
+        "keys take Table 1) or the name of a bearing shipped with the package: "
+        f"{', '.join(shipped_bearing_names())} (gfb_env/data/bearings/). Default: the paper's Table 1",
     )
 
 
 def check_output_dir(text: str, option: str = "--out", files: Iterable[str] = ()) -> Path:
     """The output folder ``text`` of ``option``, checked before any computation: it must be an
     existing folder or creatable (its first existing ancestor a folder), writable, and none of
-    ``files`` inside it may be a folder or read-only.  Creates nothing.
+    ``files`` inside it may be a folder or read-only.  Leaves nothing behind: writability is probed by
+    creating and removing a temporary folder in the folder (or its first existing ancestor), because
+    permission bits do not tell (root may "write" in ``/proc``; a read-only mount; ACLs).
 
     Raises:
         ValueError: one line naming ``option`` and the reason.
@@ -147,11 +234,53 @@ def check_output_dir(text: str, option: str = "--out", files: Iterable[str] = ()
     # os.access also reports a read-only file system (EROFS); for root it allows what root may do
     if not os.access(base, os.W_OK | os.X_OK):
         raise ValueError(f"{option} {text}: no permission to write in {base}")
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".gfb-probe-", dir=base))
+    except OSError as exc:
+        raise ValueError(f"{option} {text}: cannot write in {base} ({exc.strerror})") from None
     for name in files:
         f = out / name
         if f.is_dir() or (f.exists() and not os.access(f, os.W_OK)):
             raise ValueError(f"{option} {text}: cannot write {f}")
     return out
+
+
+def optional_output_dir(text: str | None, option: str = "--out", files: Iterable[str] = ()) -> Path | None:
+    """:func:`check_output_dir` of an optional ``--out``: None when no folder was given (the command
+    then writes no files; its summary goes to stdout)."""
+    return None if text is None else check_output_dir(text, option, files)
+
+
+def print_table(rows: dict) -> None:
+    """Print ``rows`` as an aligned two-column table (floats with 6 significant digits)."""
+    width = max(len(k) for k in rows)
+    for k, v in rows.items():
+        if isinstance(v, float):
+            v = f"{v:.6g}"
+        elif isinstance(v, list):
+            v = ", ".join(f"{x:.6g}" if isinstance(x, float) else str(x) for x in v)
+        print(f"{k:<{width}}  {v}")
+
+
+def add_out_option(p: argparse.ArgumentParser, files: Iterable[str] = ()) -> None:
+    """``--out DIR``, optional: the folder of the command's ``files`` (checked before any work by
+    :func:`optional_output_dir`); without it the command writes no files and prints its summary."""
+    listed = f" ({', '.join(files)})" if files else ""
+    p.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help=f"output folder for the files{listed}, created if needed and checked before any work. "
+        "Default: write no files, print the summary only (--json: as one JSON object)",
+    )
+
+
+def write_json(path: str | os.PathLike, obj: Any, indent: int | None = 2) -> Path:
+    """Write ``obj`` as JSON (:func:`gfb_env.jsonio.dumps`: NaN and inf as null, numpy scalars as
+    numbers) to ``path``; returns the path."""
+    path = Path(path)
+    path.write_text(jsonio.dumps(obj, indent=indent))
+    return path
 
 
 def add_model_options(p: argparse.ArgumentParser, damping: bool = True) -> None:
@@ -344,7 +473,7 @@ def bearing_range_from_args(
 def add_start_options(p: argparse.ArgumentParser) -> None:
     """``--perturbation DXI DETA`` (the start's displacement from the equilibrium, units of C) and
     ``--touchdown HMIN`` (the film thickness that stops a run), shared by the transient commands; the
-    start film is checked against the threshold before any work (``gfb_env.cli.check_perturbation``)."""
+    start film is checked against the threshold before any work (:func:`check_perturbation`)."""
     p.add_argument(
         "--perturbation",
         type=finite("--perturbation"),
@@ -361,4 +490,41 @@ def add_start_options(p: argparse.ArgumentParser) -> None:
         metavar="HMIN",
         help="min film thickness (units of C) that stops the run as a touchdown, in [0, 1). "
         "Default: %(default)s",
+    )
+
+
+#: A developed whirl takes about 40 accepted steps per unit tau (measured: 73 449 steps for tau = 2000
+#: at Lambda = 1.5 on 79x7), and the integrator stops at ``max_steps`` = 10 000 000 steps; so a
+#: transient run (``gfb simulate --duration``, ``gfb runup``) is limited to 10e6 / 40 = 250 000 (40 s of
+#: rotor time; ~5 min of wall time at 28 us/step on 79x7, longer on finer grids).
+MAX_DURATION = 250_000.0
+#: At most this many output samples (``--duration / --record-interval``): the record buffer and the
+#: CSV (~90 bytes a row) stay below ~100 MB.
+MAX_SAMPLES = 1_000_000
+
+
+def check_perturbation(
+    model: GFBModel, s_eq: np.ndarray, perturbation: list[float], touchdown: float
+) -> None:
+    """Refuse (``ValueError`` naming ``--perturbation``) a displacement of the journal from the
+    equilibrium ``s_eq`` after which the film is not thicker than ``touchdown`` everywhere.
+
+    The film is linear in the displacement: ``H_i(t) = H_i - t (d_xi sin phi_i + d_eta cos phi_i)``
+    for the unit direction ``d``, so the largest allowed step along ``d`` is exact."""
+    p = np.asarray(perturbation, dtype=float)
+    size = float(np.hypot(*p))
+    if size == 0.0:
+        return
+    d = p / size
+    H = model.film_thickness(s_eq)
+    rate = d[0] * np.sin(model.grid.phi) + d[1] * np.cos(model.grid.phi)
+    closing = rate > 0
+    t_max = float(np.min((H[closing] - touchdown) / rate[closing])) if closing.any() else math.inf
+    if size < t_max:
+        return
+    hmin = float(np.min(H - size * rate))
+    raise ValueError(
+        f"--perturbation {p[0]:g} {p[1]:g} leaves a min film thickness of {hmin:.3g} at the start; in "
+        f"this direction the journal may move less than {t_max:.3g} from its equilibrium to keep the "
+        f"film above --touchdown {touchdown:g}"
     )

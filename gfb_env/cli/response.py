@@ -14,20 +14,21 @@ from pathlib import Path
 import numpy as np
 
 from gfb_env import jsonio
-from gfb_env._cli_common import (
+from gfb_env.scripting import (
     add_model_options,
+    add_out_option,
     add_speed_range_options,
     add_unbalance_options,
     bearing_range_from_args,
     check_eigen_grid,
-    check_output_dir,
     int_range,
     model_from_args,
+    optional_output_dir,
     positive,
     unbalance_from_args,
 )
 
-__all__ = ["add_response_command", "cmd_response"]
+__all__ = ["register", "cmd_response"]
 
 _FILES = ("response.csv", "response.png", "summary.json")
 #: Default speed range in Lambda (Table 1: 6 000 - 60 000 rpm).
@@ -43,7 +44,7 @@ def cmd_response(args: argparse.Namespace) -> int:
     """Handler of ``gfb response``."""
     from gfb_env.analysis.response import response_curve, transient_synchronous_orbit, unbalance_response
 
-    out = check_output_dir(args.out, "--out", _FILES)
+    out = optional_output_dir(args.out, "--out", _FILES)
     model = check_eigen_grid(model_from_args(args))
     b = model.bearing
     lo, hi = bearing_range_from_args(args, b, _LAMBDA_RANGE)
@@ -85,7 +86,6 @@ def cmd_response(args: argparse.Namespace) -> int:
             "residual_rms": orb.residual_rms,
         }
     wall = time.perf_counter() - t0
-    out.mkdir(parents=True, exist_ok=True)
     # phases unwrapped along the speed range (a lag growing through 90 degrees at a resonance)
     xi_ph = np.degrees(np.unwrap(np.radians([r.xi_phase_deg for r in curve])))
     eta_ph = np.degrees(np.unwrap(np.radians([r.eta_phase_deg for r in curve])))
@@ -110,12 +110,14 @@ def cmd_response(args: argparse.Namespace) -> int:
                 b.micrometres(r.semi_minor),
             )  # fmt: skip
         )
-    with (out / "response.csv").open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(_COLUMNS)
-        for row in rows:
-            w.writerow([f"{x:.8g}" if isinstance(x, float) else x for x in row])
-    _plot(np.array(rows), at, b, out / "response.png", model, unbalance)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        with (out / "response.csv").open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(_COLUMNS)
+            for row in rows:
+                w.writerow([f"{x:.8g}" if isinstance(x, float) else x for x in row])
+        _plot(np.array(rows), at, b, out / "response.png", model, unbalance)
     unstable = [r.bearing_number for r in curve if not r.stable]
     d = {
         "structure": model.structure.value,
@@ -145,10 +147,11 @@ def cmd_response(args: argparse.Namespace) -> int:
         "n_speeds": len(curve),
         "first_unstable_bearing_number": min(unstable) if unstable else None,
         "verify": verify,
-        "files": {k: str(out / k) for k in _FILES},
+        "files": {} if out is None else {k: str(out / k) for k in _FILES},
         "wall_time_s": wall,
     }
-    (out / "summary.json").write_text(jsonio.dumps(d, indent=2))
+    if out is not None:
+        (out / "summary.json").write_text(jsonio.dumps(d, indent=2))
     if args.json:
         print(jsonio.dumps(d))
     else:
@@ -167,12 +170,12 @@ def cmd_response(args: argparse.Namespace) -> int:
                 f"  transient check: xi error {verify['xi_relative_error']:.2%}, eta error "
                 f"{verify['eta_relative_error']:.2%}"
             )
-        print(f"  wrote {', '.join(d['files'].values())} ({wall:.1f} s)")
+        print(f"  wrote {', '.join(d['files'].values()) or 'no files (--out DIR)'} ({wall:.1f} s)")
     return 0
 
 
 def _plot(rows: np.ndarray, at, bearing, path: Path, model, unbalance) -> None:
-    from gfb_env._plotting import plt
+    from gfb_env.plotting import plt
 
     rpm = rows[:, 0]
     stable = rows[:, 9] > 0
@@ -208,7 +211,7 @@ def _plot(rows: np.ndarray, at, bearing, path: Path, model, unbalance) -> None:
     plt.close(fig)
 
 
-def add_response_command(subparsers) -> None:
+def register(subparsers) -> None:
     """Add ``response`` to an :mod:`argparse` subparsers object."""
     p = subparsers.add_parser(
         "response",
@@ -256,6 +259,6 @@ def add_response_command(subparsers) -> None:
         help="also run the transient at the evaluation speed (from the equilibrium, unbalance on at tau = 0, "
         "settled for 10 decay times) and report its synchronous orbit's error against the linear one",
     )
-    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    add_out_option(p, _FILES)
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=cmd_response)

@@ -1,6 +1,6 @@
 """Analysis subcommands of the ``gfb`` CLI: ``critical``, ``hysteresis``, ``map``.
 
-The lead's :mod:`gfb_env.cli` calls :func:`add_analysis_commands` on its subparsers object; each
+:func:`gfb_env.cli.build_parser` calls :func:`register` on its subparsers object; each
 subcommand sets ``func=handler`` where ``handler(args) -> int`` returns the exit code.  Invalid input
 raises :class:`ValueError` with a one-line message (``main`` turns it into an error and exit code 2).
 """
@@ -8,7 +8,6 @@ raises :class:`ValueError` with a one-line message (``main`` turns it into an er
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import sys
 import time
@@ -16,19 +15,21 @@ import time
 import numpy as np
 
 from gfb_env import jsonio
-from gfb_env._cli_common import (
+from gfb_env.params import BearingParameters
+from gfb_env.scripting import (
     add_bearing_option,
     add_model_options,
+    add_out_option,
     check_eigen_grid,
-    check_output_dir,
+    float_list,
     grid_type,
     int_range,
     model_from_args,
+    optional_output_dir,
     positive,
 )
-from gfb_env.params import BearingParameters
 
-__all__ = ["add_analysis_commands", "cmd_critical", "cmd_hysteresis", "cmd_map"]
+__all__ = ["register", "cmd_critical", "cmd_hysteresis", "cmd_map"]
 
 _FMT = argparse.RawDescriptionHelpFormatter
 #: Largest ``--n-steps``: the shooting sweep keeps a sparse Jacobian and its LU per step (measured
@@ -162,16 +163,6 @@ def cmd_hysteresis(args: argparse.Namespace) -> int:
     return 0
 
 
-def _floats(text: str, name: str) -> list[float]:
-    try:
-        vals = [float(x) for x in str(text).replace(",", " ").split()]
-    except ValueError:
-        raise ValueError(f"{name} must be a comma-separated list of numbers, got {text!r}") from None
-    if not vals or any(not (math.isfinite(v) and v > 0) for v in vals):
-        raise ValueError(f"{name} must be a non-empty list of positive numbers, got {text!r}")
-    return vals
-
-
 #: At most this many Lambda_c searches in one ``gfb map`` (K x D viscoelastic + K elastic + 1 rigid):
 #: ~5 s each on 79x7, so 1000 is ~1.4 h on one core; larger sweeps belong in a script or on a cluster.
 MAX_MAP_SOLVES = 1000
@@ -183,8 +174,9 @@ def cmd_map(args: argparse.Namespace) -> int:
     from gfb_env.analysis.maps import compute_stability_map, write_stability_map
     from gfb_env.model import GFBModel
 
-    kws = _floats(args.foil_stiffness, "--foil-stiffness")
-    dws = _floats(args.foil_damping, "--foil-damping")
+    out = optional_output_dir(args.out, "--out", _MAP_FILES)
+    kws = float_list(args.foil_stiffness, "--foil-stiffness")
+    dws = float_list(args.foil_damping, "--foil-damping")
     n_solves = len(kws) * len(dws) + len(kws) + 1
     if n_solves > MAX_MAP_SOLVES:
         raise ValueError(
@@ -198,7 +190,6 @@ def cmd_map(args: argparse.Namespace) -> int:
         )
     # the largest model of the map (viscoelastic) must fit the dense eigen-analysis
     check_eigen_grid(GFBModel("viscoelastic", args.grid, bearing=args.bearing))
-    out = check_output_dir(args.out, "--out", _MAP_FILES)
     t0 = time.perf_counter()
     smap = compute_stability_map(
         kws,
@@ -206,13 +197,13 @@ def cmd_map(args: argparse.Namespace) -> int:
         grid=str(args.grid),
         n_jobs=args.n_jobs,
         scheduler=args.scheduler,
-        checkpoint=out / "sweep.jsonl",
+        checkpoint=None if out is None else out / "sweep.jsonl",
         progress=not args.json,
         bearing=None if args.bearing == BearingParameters() else args.bearing,
     )
-    paths = write_stability_map(smap, out)
+    paths = {} if out is None else write_stability_map(smap, out)
     d = {
-        "out": str(out),
+        "out": None if out is None else str(out),
         "files": {k: str(v) for k, v in paths.items()},
         "rigid_critical_bearing_number": smap.rigid,
         "foil_stiffness": kws,
@@ -232,11 +223,13 @@ def cmd_map(args: argparse.Namespace) -> int:
                 f"K_W={k:8.4g}: elastic Lambda_c={e:.5f}  "
                 f"viscoelastic max Lambda_c={lmax:.5f} at D_W*={dopt:.4g}"
             )
-        print("wrote " + ", ".join(str(p) for p in paths.values()), file=sys.stdout)
+        print(
+            "wrote " + (", ".join(str(p) for p in paths.values()) or "no files (--out DIR)"), file=sys.stdout
+        )
     return 0
 
 
-def add_analysis_commands(subparsers) -> None:
+def register(subparsers) -> None:
     """Add ``critical``, ``hysteresis`` and ``map`` to an :mod:`argparse` subparsers object."""
     p = subparsers.add_parser(
         "critical",
@@ -319,7 +312,7 @@ def add_analysis_commands(subparsers) -> None:
     p.add_argument(
         "--grid", type=grid_type, default="79x7", help="finite-difference grid N_phi x N_Z (default 79x7)"
     )
-    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    add_out_option(p, _MAP_FILES)
     p.add_argument(
         "--n-jobs",
         type=int,

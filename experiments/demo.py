@@ -22,8 +22,7 @@ from pathlib import Path
 
 from gfb_env import jsonio
 from gfb_env.cli import main as gfb_main
-from gfb_env.cli.static import equilibrium_summary
-from gfb_env.equilibrium import find_equilibrium
+from gfb_env.equilibrium import equilibrium_summary, find_equilibrium
 from gfb_env.model import GFBModel
 from gfb_env.params import BearingParameters
 from gfb_env.scripting import OneLineParser, check_output_dir

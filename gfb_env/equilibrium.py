@@ -7,12 +7,14 @@ guess is given (see :func:`find_equilibrium`).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import scipy.sparse.linalg as spla
 
 from gfb_env.model import GFBModel
 
-__all__ = ["EquilibriumError", "find_equilibrium"]
+__all__ = ["EquilibriumError", "equilibrium_summary", "find_equilibrium"]
 
 
 class EquilibriumError(RuntimeError):
@@ -101,3 +103,29 @@ def _newton_equilibrium(
     if rn < tol * 100:
         return s
     raise EquilibriumError(f"Newton did not converge (residual {rn:.3g})")
+
+
+def equilibrium_summary(model: GFBModel, s: np.ndarray, bearing_number: float) -> dict:
+    """What ``gfb equilibrium`` reports of the equilibrium ``s`` at ``bearing_number``: eccentricity,
+    attitude angle, film, peak pressure and the load balance, nondimensional and in the bearing's units."""
+    b = model.bearing
+    force = model.bearing_force(s)
+    eps = model.eccentricity(s)
+    hmin = model.min_film_thickness(s)
+    fmag = float(np.hypot(*force))
+    return {
+        "structure": model.structure.value,
+        "grid": str(model.grid),
+        "bearing_number": bearing_number,
+        "speed_rpm": b.speed_rpm_at(bearing_number),
+        "foil_stiffness": model.foil_stiffness,
+        "eccentricity": eps,
+        "attitude_angle_deg": math.degrees(model.attitude_angle(s)),
+        "min_film_thickness": hmin,
+        "max_pressure": float(model.layout.pressure(s).max()),
+        "bearing_force": fmag,
+        "load": model.load,
+        "eccentricity_um": b.micrometres(eps),
+        "min_film_thickness_um": b.micrometres(hmin),
+        "bearing_force_N": b.newtons(fmag),
+    }

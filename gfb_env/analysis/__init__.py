@@ -11,6 +11,10 @@ Layer: uses :mod:`gfb_env.params`, :mod:`gfb_env.model`, :mod:`gfb_env.integrato
 * :mod:`~gfb_env.analysis.maps` -- stability map (Fig. 4) and hysteresis map, their files and loaders.
 * :mod:`~gfb_env.analysis.campbell` -- rotor-mode frequencies, damping ratio, log decrement vs speed.
 * :mod:`~gfb_env.analysis.runup` -- run-up / coast-down at a given acceleration, waterfall, envelopes.
+
+The results own their derived quantities and their figures (``result.plot()``, drawn by
+:mod:`gfb_env.plotting`): :class:`CampbellDiagram`, :class:`RunUpAnalysis`,
+:class:`~gfb_env.analysis.response.ResponseCurve`, :class:`~gfb_env.analysis.schedule.RunUpSchedule`.
 """
 
 from gfb_env.analysis.campbell import CampbellDiagram, campbell_diagram
@@ -41,7 +45,7 @@ from gfb_env.analysis.periodic import (
     periodic_orbit_from_simulation,
     settle_whirl,
 )
-from gfb_env.analysis.runup import RunUpResult, Waterfall, run_up, waterfall
+from gfb_env.analysis.runup import RunUpAnalysis, RunUpResult, Waterfall, analyse_run_up, run_up, waterfall
 from gfb_env.analysis.spectrum import (
     AmplitudeSpectrum,
     DominantFrequency,
@@ -62,8 +66,10 @@ from gfb_env.analysis.stability import (
 __all__ = [
     "AmplitudeSpectrum",
     "CampbellDiagram",
+    "RunUpAnalysis",
     "RunUpResult",
     "Waterfall",
+    "analyse_run_up",
     "campbell_diagram",
     "run_up",
     "waterfall",

@@ -30,8 +30,11 @@ when the critical mode is rotor-dominated (the test checks 1e-4).
 
 from __future__ import annotations
 
+import csv
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg as sla
@@ -41,6 +44,9 @@ from gfb_env.analysis.stability import check_eigen_size
 from gfb_env.equilibrium import EquilibriumError, find_equilibrium
 from gfb_env.model import GFBModel
 from gfb_env.params import check_positive
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["CampbellDiagram", "campbell_diagram", "rotor_modes", "MAX_CAMPBELL_SPEEDS"]
 
@@ -117,6 +123,107 @@ class CampbellDiagram:
     def whirl_frequency_ratio(self) -> np.ndarray:
         """``Im(lambda) / Lambda``: whirl frequency over rotor speed (the 1x line is 1)."""
         return self.eigenvalues.imag / self.bearing_number[:, None]
+
+    @property
+    def n_modes(self) -> int:
+        """Rotor modes kept per speed."""
+        return int(self.eigenvalues.shape[1])
+
+    @property
+    def onset_frequency_hz(self) -> float | None:
+        """Whirl frequency at the onset in Hz (``None``: no onset in the range)."""
+        on = self.onset_eigenvalue
+        return None if on is None else on.imag / (2.0 * math.pi * self.time_scale_s)
+
+    @property
+    def onset_whirl_frequency_ratio(self) -> float | None:
+        """Whirl frequency over rotor speed at the onset, ``Im(lambda) / Lambda_c`` (about 0.43-0.5)."""
+        on = self.onset_eigenvalue
+        return None if on is None else on.imag / self.onset_bearing_number
+
+    def _min_log_decrement_index(self) -> tuple[int, int] | None:
+        delta = self.log_decrement
+        ok = np.isfinite(delta)
+        if not ok.any():
+            return None
+        j, k = np.unravel_index(np.nanargmin(np.where(ok, delta, np.inf)), delta.shape)
+        return int(j), int(k)
+
+    @property
+    def min_log_decrement(self) -> float | None:
+        """The smallest log decrement over speeds and modes (``None``: no equilibrium at all)."""
+        jk = self._min_log_decrement_index()
+        return None if jk is None else float(self.log_decrement[jk])
+
+    @property
+    def min_log_decrement_speed_rpm(self) -> float | None:
+        """The speed of :attr:`min_log_decrement` in rpm."""
+        jk = self._min_log_decrement_index()
+        return None if jk is None else float(self.speed_rpm[jk[0]])
+
+    @property
+    def equilibria_failed(self) -> int:
+        """Speeds at which no equilibrium was found (their modes are NaN)."""
+        return int(np.sum(~np.isfinite(self.eccentricity)))
+
+    def summary(self) -> dict:
+        """The scalar results (the keys of ``gfb campbell --json`` but ``files`` and ``wall_time_s``)."""
+        lo, hi = float(self.bearing_number[0]), float(self.bearing_number[-1])
+        return {
+            "structure": self.structure,
+            "grid": self.grid,
+            "foil_stiffness": self.foil_stiffness,
+            "foil_damping": self.foil_damping,
+            "modes": self.n_modes,
+            "n_speeds": len(self.bearing_number),
+            "bearing_number_range": [lo, hi],
+            "speed_rpm_range": [float(self.speed_rpm[0]), float(self.speed_rpm[-1])],
+            "onset_bearing_number": self.onset_bearing_number,
+            "onset_speed_rpm": self.onset_speed_rpm,
+            "onset_frequency_hz": self.onset_frequency_hz,
+            "onset_whirl_frequency_ratio": self.onset_whirl_frequency_ratio,
+            "min_log_decrement": self.min_log_decrement,
+            "min_log_decrement_speed_rpm": self.min_log_decrement_speed_rpm,
+            "equilibria_failed": self.equilibria_failed,
+        }
+
+    #: Columns of :meth:`write_csv` (one row per speed and mode).
+    CSV_COLUMNS = (
+        "speed_rpm", "bearing_number", "mode", "frequency_hz", "angular_frequency", "whirl_frequency_ratio",
+        "growth_rate", "damping_ratio", "log_decrement", "rotor_participation", "eccentricity",
+    )  # fmt: skip
+
+    def write_csv(self, path: str | Path) -> Path:
+        """Write one row per speed and mode (:attr:`CSV_COLUMNS`, 8 significant digits): ``gfb campbell``'s
+        ``campbell.csv``."""
+        path = Path(path)
+        f_hz, zeta, delta, ratio = (
+            self.frequency_hz,
+            self.damping_ratio,
+            self.log_decrement,
+            self.whirl_frequency_ratio,
+        )
+        with path.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(self.CSV_COLUMNS)
+            for j in range(len(self.bearing_number)):
+                for k in range(self.n_modes):
+                    ev = self.eigenvalues[j, k]
+                    w.writerow(
+                        [f"{x:.8g}" if isinstance(x, float) else x for x in (
+                            float(self.speed_rpm[j]), float(self.bearing_number[j]), k + 1, float(f_hz[j, k]),
+                            float(ev.imag), float(ratio[j, k]), float(ev.real), float(zeta[j, k]),
+                            float(delta[j, k]), float(self.participation[j, k]), float(self.eccentricity[j]),
+                        )]
+                    )  # fmt: skip
+        return path
+
+    def plot(self, path: str | Path | None = None, nondimensional: bool = False) -> Figure:
+        """The Campbell diagram and the log decrement (:func:`gfb_env.plotting.plot_campbell`); saved to
+        ``path`` when given."""
+        from gfb_env.plotting import plot_campbell
+
+        return plot_campbell(self, path, nondimensional)
 
 
 def campbell_diagram(

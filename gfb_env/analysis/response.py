@@ -24,8 +24,12 @@ rotation) when ``|A_f| > |A_b|``.
 
 from __future__ import annotations
 
+import csv
 import math
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -34,11 +38,16 @@ import scipy.sparse.linalg as spla
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.forcing import Unbalance
 from gfb_env.model import GFBModel
+from gfb_env.params import BearingParameters
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = [
     "UnbalanceResponse",
     "unbalance_response",
     "response_curve",
+    "ResponseCurve",
     "SynchronousOrbit",
     "synchronous_components",
     "transient_synchronous_orbit",
@@ -162,13 +171,113 @@ def unbalance_response(
     )
 
 
+@dataclass(frozen=True)
+class ResponseCurve(Sequence):
+    """The unbalance response over speed (a sequence of :class:`UnbalanceResponse`, by increasing
+    ``Lambda``) and what is read off it: its peak, where it turns unstable, the table of ``gfb
+    response``'s ``response.csv`` and its figure (:meth:`plot`).
+
+    Attributes:
+        responses: one per speed; bearing: the dimensional bearing (rpm, um); unbalance: the forcing;
+        structure, foil_stiffness, grid: the model.
+    """
+
+    responses: tuple[UnbalanceResponse, ...]
+    bearing: BearingParameters
+    unbalance: Unbalance
+    structure: str
+    foil_stiffness: float
+    grid: str
+
+    #: Columns of :meth:`rows` and :meth:`write_csv`.
+    COLUMNS = (
+        "speed_rpm", "bearing_number", "xi_amplitude", "eta_amplitude", "xi_phase_deg", "eta_phase_deg",
+        "semi_major", "semi_minor", "forward", "stable", "growth_rate", "xi_amplitude_um", "eta_amplitude_um",
+        "semi_major_um", "semi_minor_um",
+    )  # fmt: skip
+
+    def __len__(self) -> int:
+        return len(self.responses)
+
+    def __getitem__(self, i):  # noqa: ANN001 - an index or a slice, as a tuple takes
+        return self.responses[i]
+
+    def __iter__(self) -> Iterator[UnbalanceResponse]:
+        return iter(self.responses)
+
+    @property
+    def bearing_number(self) -> np.ndarray:
+        return np.array([r.bearing_number for r in self.responses])
+
+    @property
+    def speed_rpm(self) -> np.ndarray:
+        return np.array([self.bearing.speed_rpm_at(r.bearing_number) for r in self.responses])
+
+    @property
+    def peak(self) -> UnbalanceResponse:
+        """The largest orbit (semi-major axis) of the stable speeds (the first speed if none is stable)."""
+        return max(
+            (r for r in self.responses if r.stable), key=lambda r: r.semi_major, default=self.responses[0]
+        )
+
+    @property
+    def first_unstable_bearing_number(self) -> float | None:
+        """The lowest speed (Lambda) whose equilibrium is unstable: above it the linear response is void."""
+        unstable = [r.bearing_number for r in self.responses if not r.stable]
+        return min(unstable) if unstable else None
+
+    def rows(self) -> list[tuple]:
+        """One row per speed (:attr:`COLUMNS`), the phases unwrapped along the speeds (a lag growing
+        through 90 degrees at a resonance)."""
+        b = self.bearing
+        xi_ph = np.degrees(np.unwrap(np.radians([r.xi_phase_deg for r in self.responses])))
+        eta_ph = np.degrees(np.unwrap(np.radians([r.eta_phase_deg for r in self.responses])))
+        return [
+            (
+                b.speed_rpm_at(r.bearing_number),
+                r.bearing_number,
+                r.xi_amplitude,
+                r.eta_amplitude,
+                float(pxi),
+                float(peta),
+                r.semi_major,
+                r.semi_minor,
+                int(r.forward),
+                int(bool(r.stable)),
+                r.growth_rate,
+                b.micrometres(r.xi_amplitude),
+                b.micrometres(r.eta_amplitude),
+                b.micrometres(r.semi_major),
+                b.micrometres(r.semi_minor),
+            )  # fmt: skip
+            for r, pxi, peta in zip(self.responses, xi_ph, eta_ph, strict=True)
+        ]
+
+    def write_csv(self, path: str | Path) -> Path:
+        """:meth:`rows` with a header (8 significant digits): ``gfb response``'s ``response.csv``."""
+        path = Path(path)
+        with path.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(self.COLUMNS)
+            for row in self.rows():
+                w.writerow([f"{x:.8g}" if isinstance(x, float) else x for x in row])
+        return path
+
+    def plot(self, at: UnbalanceResponse | None = None, path: str | Path | None = None) -> Figure:
+        """The Bode plot and orbit axes (:func:`gfb_env.plotting.plot_response`), ``at`` (default
+        :attr:`peak`) marked."""
+        from gfb_env.plotting import plot_response
+
+        return plot_response(self, at, path)
+
+
 def response_curve(
     model: GFBModel,
     bearing_numbers: np.ndarray,
     unbalance: float | Unbalance,
     foil_damping: float = 1.0,
     stability: bool = True,
-) -> list[UnbalanceResponse]:
+) -> ResponseCurve:
     """:func:`unbalance_response` over increasing bearing numbers (equilibria warm-started)."""
     out = []
     guess = None
@@ -176,7 +285,10 @@ def response_curve(
         s0 = find_equilibrium(model, float(lam), guess=guess)
         guess = s0
         out.append(unbalance_response(model, float(lam), unbalance, foil_damping, s0, stability))
-    return out
+    return ResponseCurve(
+        tuple(out), model.bearing, _magnitude(unbalance), model.structure.value, float(model.foil_stiffness),
+        str(model.grid),
+    )  # fmt: skip
 
 
 # ------------------------------------------------------------------------------------------------
@@ -190,6 +302,17 @@ class SynchronousOrbit:
     mean_xi: float
     mean_eta: float
     residual_rms: float
+
+    def compare(self, linear: UnbalanceResponse) -> dict[str, float]:
+        """This (transient) orbit against the ``linear`` one: its amplitudes, the relative errors of the
+        complex amplitudes and the residual (``gfb response --verify``)."""
+        return {
+            "xi_amplitude": abs(self.xi),
+            "eta_amplitude": abs(self.eta),
+            "xi_relative_error": abs(self.xi - linear.xi) / abs(linear.xi),
+            "eta_relative_error": abs(self.eta - linear.eta) / abs(linear.eta),
+            "residual_rms": self.residual_rms,
+        }
 
 
 def synchronous_components(

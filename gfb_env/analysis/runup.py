@@ -27,7 +27,9 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -36,10 +38,16 @@ from gfb_env.equilibrium import find_equilibrium
 from gfb_env.forcing import Unbalance
 from gfb_env.integrator import Trajectory, TrapezoidalIntegrator
 from gfb_env.model import GFBModel
-from gfb_env.params import check_positive
+from gfb_env.params import BearingParameters, check_positive
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = [
+    "WHIRL_THRESHOLD",
+    "RunUpAnalysis",
     "RunUpResult",
+    "analyse_run_up",
     "Waterfall",
     "bearing_number_rate",
     "ramp_rotation_angle",
@@ -275,3 +283,289 @@ def waterfall(res: RunUpResult, window: float) -> Waterfall:
     if omega is None:
         raise ValueError(f"the run is shorter than one waterfall window ({window:g} tau)")
     return Waterfall(omega, np.array(spectra), np.array(lams), np.array(legs))
+
+
+# ------------------------------------------------------------------------------------------------
+#: Half peak-to-peak of xi (units of C) over a window above which the journal counts as whirling.
+WHIRL_THRESHOLD = 0.02
+
+
+@dataclass(frozen=True)
+class RunUpAnalysis:
+    """A run-up and what an engineer reads off it (``gfb runup``'s summary and figures): the window
+    envelopes (:func:`envelopes`) and the waterfall (:func:`waterfall`) of ``result``, the whirl onset
+    on the run-up and its collapse on the coast-down, the dominant order at the top speed, the 1x
+    (order-tracked) response, in the units of ``bearing``.  Made by :func:`analyse_run_up`.
+
+    Attributes:
+        result: the run; bearing: its dimensional bearing (rpm, um, s); window: the windows in tau.
+        envelope: per window (:func:`envelopes`); waterfall: the spectra (:func:`waterfall`).
+        critical_bearing_number: the linear onset Lambda_c (for the figures; ``None``: unknown).
+        whirl_threshold: the whirl amplitude (units of C) that counts as whirling.
+    """
+
+    result: RunUpResult
+    bearing: BearingParameters
+    window: float
+    envelope: dict[str, np.ndarray] = field(repr=False)
+    waterfall: Waterfall = field(repr=False)
+    critical_bearing_number: float | None = None
+    whirl_threshold: float = WHIRL_THRESHOLD
+
+    @property
+    def _um(self) -> float:
+        return self.bearing.clearance_m * 1e6
+
+    @property
+    def ok(self) -> bool:
+        """The run went to its end or stopped at a touchdown (not an integration failure)."""
+        return self.result.status in ("done", "touchdown")
+
+    @property
+    def speed_rpm(self) -> np.ndarray:
+        """The speed of each sample in rpm."""
+        return np.array([self.bearing.speed_rpm_at(x) for x in self.result.trajectory.bearing_number])
+
+    @property
+    def envelope_speed_rpm(self) -> np.ndarray:
+        """The mean speed of each envelope window in rpm."""
+        return np.array([self.bearing.speed_rpm_at(x) for x in self.envelope["bearing_number"]])
+
+    @property
+    def whirl_amplitude(self) -> np.ndarray:
+        """Per window, the whirl amplitude (units of C; with an unbalance the non-synchronous part)."""
+        return self.envelope["whirl"]
+
+    def _whirling(self, leg: int) -> np.ndarray:
+        return (self.whirl_amplitude > self.whirl_threshold) & (self.envelope["leg"] == leg)
+
+    @property
+    def whirl_onset_speed_rpm(self) -> float | None:
+        """The first run-up window whose whirl amplitude exceeds :attr:`whirl_threshold` (rpm)."""
+        up = self._whirling(0)
+        return float(self.envelope_speed_rpm[np.argmax(up)]) if up.any() else None
+
+    @property
+    def whirl_collapse_speed_rpm(self) -> float | None:
+        """The last coast-down window still whirling (rpm): below it the whirl has collapsed."""
+        down = self._whirling(1)
+        return float(self.envelope_speed_rpm[np.nonzero(down)[0][-1]]) if down.any() else None
+
+    @property
+    def top_speed_dominant_order(self) -> float:
+        """The dominant line of the last run-up window, as a multiple of the rotor speed."""
+        wf = self.waterfall
+        j_top = int(np.nonzero(wf.leg == 0)[0][-1])
+        k = 1 + int(np.argmax(wf.amplitude[j_top, 1:]))
+        return float(wf.omega[k] / wf.bearing_number[j_top])
+
+    @property
+    def _top(self) -> int:
+        return int(np.nonzero(self.envelope["leg"] == 0)[0][-1])
+
+    @property
+    def _synchronous(self) -> np.ndarray:
+        return np.maximum(self.envelope["sync_xi"], self.envelope["sync_eta"])
+
+    @property
+    def top_speed_1x_speed_rpm(self) -> float:
+        """The speed of the last run-up window (rpm), where :attr:`top_speed_1x_xi_um` is taken."""
+        return float(self.envelope_speed_rpm[self._top])
+
+    @property
+    def top_speed_1x_xi_um(self) -> float:
+        """The order-tracked 1x amplitude of x (zero-to-peak, um) at the top speed of the run-up."""
+        return float(self.envelope["sync_xi"][self._top]) * self._um
+
+    @property
+    def top_speed_1x_eta_um(self) -> float:
+        """The order-tracked 1x amplitude of y (zero-to-peak, um) at the top speed of the run-up."""
+        return float(self.envelope["sync_eta"][self._top]) * self._um
+
+    @property
+    def max_1x_amplitude_um(self) -> float:
+        """The largest order-tracked 1x amplitude (of x or y, zero-to-peak, um) over the run."""
+        return float(self._synchronous[int(np.argmax(self._synchronous))]) * self._um
+
+    @property
+    def max_1x_speed_rpm(self) -> float:
+        """The speed of :attr:`max_1x_amplitude_um` (rpm)."""
+        return float(self.envelope_speed_rpm[int(np.argmax(self._synchronous))])
+
+    @property
+    def critical_speed_rpm(self) -> float | None:
+        """The linear critical speed (rpm) of :attr:`critical_bearing_number`."""
+        lam_c = self.critical_bearing_number
+        return None if lam_c is None else self.bearing.speed_rpm_at(lam_c)
+
+    @property
+    def touchdown_speed_rpm(self) -> float | None:
+        """The speed at the touchdown (rpm; ``None``: none)."""
+        res = self.result
+        if res.touchdown_tau is None:
+            return None
+        return float(np.interp(res.touchdown_tau, res.trajectory.tau, self.speed_rpm))
+
+    def summary(self) -> dict:
+        """The run's results in physical units (the keys of ``gfb runup --json`` from ``duration_tau`` to
+        ``steps``)."""
+        tr, um = self.result.trajectory, self._um
+        return {
+            "duration_tau": float(tr.tau[-1]),
+            "duration_s": float(tr.tau[-1]) * self.bearing.time_scale_s,
+            "status": self.result.status,
+            "message": self.result.message,
+            "touchdown_speed_rpm": self.touchdown_speed_rpm,
+            "critical_speed_rpm": self.critical_speed_rpm,
+            "whirl_onset_speed_rpm": self.whirl_onset_speed_rpm,
+            "whirl_collapse_speed_rpm": self.whirl_collapse_speed_rpm,
+            "max_whirl_amplitude_um": float(self.whirl_amplitude.max()) * um,
+            "max_eccentricity_um": float(tr.eccentricity.max()) * um,
+            "min_film_thickness_um": float(tr.min_film_thickness.min()) * um,
+            "top_speed_dominant_order": self.top_speed_dominant_order,
+            "top_speed_1x_speed_rpm": self.top_speed_1x_speed_rpm,
+            "top_speed_1x_xi_um": self.top_speed_1x_xi_um,
+            "top_speed_1x_eta_um": self.top_speed_1x_eta_um,
+            "max_1x_amplitude_um": self.max_1x_amplitude_um,
+            "max_1x_speed_rpm": self.max_1x_speed_rpm,
+            "steps": self.result.steps,
+        }
+
+    def write_trajectory_csv(self, path: str | Path) -> Path:
+        """The samples in physical units (``tau, time_s, speed_rpm, bearing_number, leg, xi_um, eta_um,
+        min_film_thickness_um``): ``gfb runup``'s ``trajectory.csv``."""
+        tr, b, um = self.result.trajectory, self.bearing, self._um
+        np.savetxt(
+            path,
+            np.column_stack(
+                [
+                    tr.tau,
+                    tr.tau * b.time_scale_s,
+                    self.speed_rpm,
+                    tr.bearing_number,
+                    self.result.leg,
+                    tr.xi * um,
+                    tr.eta * um,
+                    tr.min_film_thickness * um,
+                ]
+            ),  # fmt: skip
+            delimiter=",",
+            header="tau,time_s,speed_rpm,bearing_number,leg,xi_um,eta_um,min_film_thickness_um",
+            comments="",
+            fmt="%.8g",
+        )
+        return Path(path)
+
+    def write_envelope_csv(self, path: str | Path) -> Path:
+        """The window envelopes in physical units: ``gfb runup``'s ``envelope.csv``."""
+        env, b, um = self.envelope, self.bearing, self._um
+        np.savetxt(
+            path,
+            np.column_stack(
+                [
+                    env["tau"] * b.time_scale_s,
+                    self.envelope_speed_rpm,
+                    env["bearing_number"],
+                    env["leg"],
+                    env["xi_min"] * um,
+                    env["xi_max"] * um,
+                    env["eta_min"] * um,
+                    env["eta_max"] * um,
+                    env["eps_max"] * um,
+                    env["hmin"] * um,
+                    env["sync_xi"] * um,
+                    env["sync_eta"] * um,
+                    self.whirl_amplitude * um,
+                ]
+            ),  # fmt: skip
+            delimiter=",",
+            header="time_s,speed_rpm,bearing_number,leg,xi_min_um,xi_max_um,eta_min_um,eta_max_um,"
+            "max_eccentricity_um,min_film_thickness_um,sync_xi_um,sync_eta_um,whirl_amplitude_um",
+            comments="",
+            fmt="%.8g",
+        )
+        return Path(path)
+
+    def default_orbit_speeds_rpm(self) -> list[float]:
+        """Four speeds spread over the recorded run-up (25, 50, 75 and 98 % of its speed range; ``gfb
+        runup``'s default ``--orbit-rpm``) for :meth:`plot_orbits`."""
+        lo, hi = (
+            self.result.trajectory.bearing_number[0],
+            float(np.max(self.result.trajectory.bearing_number)),
+        )
+        lo_rpm, hi_rpm = self.bearing.speed_rpm_at(float(lo)), self.bearing.speed_rpm_at(hi)
+        return [lo_rpm + f * (hi_rpm - lo_rpm) for f in (0.25, 0.5, 0.75, 0.98)]
+
+    def plot_waterfall(
+        self, path: str | Path | None = None, nondimensional: bool = False, title: str = ""
+    ) -> Figure:
+        """The waterfall (:func:`gfb_env.plotting.plot_waterfall`)."""
+        from gfb_env.plotting import plot_waterfall
+
+        return plot_waterfall(
+            self.waterfall, self.bearing, path, nondimensional, title, self.top_speed_dominant_order
+        )
+
+    def plot_orbits(
+        self,
+        orbit_rpm: list[float] | None = None,
+        path: str | Path | None = None,
+        nondimensional: bool = False,
+        title: str = "",
+    ) -> Figure:
+        """Orbits at the speeds ``orbit_rpm`` on the run-up (default :meth:`default_orbit_speeds_rpm`)."""
+        from gfb_env.plotting import plot_orbits
+
+        speeds = self.default_orbit_speeds_rpm() if orbit_rpm is None else list(orbit_rpm)
+        return plot_orbits(self.result, self.bearing, speeds, self.window, path, nondimensional, title)
+
+    def plot_envelope(
+        self, path: str | Path | None = None, nondimensional: bool = False, title: str = ""
+    ) -> Figure:
+        """The paper's Fig. 5 and the whirl amplitude over speed
+        (:func:`gfb_env.plotting.plot_run_up_envelope`)."""
+        from gfb_env.plotting import plot_run_up_envelope
+
+        return plot_run_up_envelope(
+            self.envelope, self.bearing, path, nondimensional, title, self.critical_bearing_number,
+            self.result.unbalance is not None,
+        )  # fmt: skip
+
+    def plot(
+        self,
+        kind: str = "envelope",
+        path: str | Path | None = None,
+        nondimensional: bool = False,
+        title: str = "",
+    ) -> Figure:
+        """One of the run-up figures: ``kind`` ``envelope`` (default), ``waterfall`` or ``orbits``."""
+        figures = {"envelope": self.plot_envelope, "waterfall": self.plot_waterfall, "orbits": None}
+        if kind not in figures:
+            raise ValueError(f"kind must be one of {', '.join(figures)}, got {kind!r}")
+        if kind == "orbits":
+            return self.plot_orbits(None, path, nondimensional, title)
+        return figures[kind](path, nondimensional, title)
+
+
+def analyse_run_up(
+    result: RunUpResult,
+    bearing: BearingParameters,
+    window: float = 256.0,
+    critical_bearing_number: float | None = None,
+    whirl_threshold: float = WHIRL_THRESHOLD,
+) -> RunUpAnalysis:
+    """The :class:`RunUpAnalysis` of a run-up: its envelopes and waterfall over windows of ``window`` tau.
+
+    Raises:
+        ValueError: a run shorter than one waterfall window or with fewer than 2 samples.
+    """
+    window = check_positive("window", window)
+    return RunUpAnalysis(
+        result,
+        bearing,
+        window,
+        envelopes(result, window),
+        waterfall(result, window),
+        critical_bearing_number,
+        check_positive("whirl_threshold", whirl_threshold),
+    )

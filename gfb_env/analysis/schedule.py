@@ -24,9 +24,12 @@ The method, for a viscoelastic foil (paper Sect. 3.2-3.4):
 
 from __future__ import annotations
 
+import csv
 import math
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -41,7 +44,21 @@ from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel, Structure
 from gfb_env.params import check_positive
 
-__all__ = ["RunUpSchedule", "ScheduleVerification", "design_run_up_schedule", "verify_schedule"]
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "STABLE_WHIRL_AMPLITUDE",
+    "RunUpSchedule",
+    "ScheduleVerification",
+    "design_run_up_schedule",
+    "verify_schedule",
+]
+
+#: The verified run counts as stable when its non-synchronous motion over the last 500 tau of the hold
+#: stays below this (units of C): the environments' stability threshold; a developed whirl is 0.3-1.2 C,
+#: the decaying start perturbation and the equilibrium's drift are orders of magnitude smaller.
+STABLE_WHIRL_AMPLITUDE = 0.05
 
 
 @dataclass(frozen=True)
@@ -74,6 +91,11 @@ class ScheduleVerification:
     synchronous_xi: float = 0.0
     synchronous_eta: float = 0.0
     max_vibration_amplitude: float = math.nan
+
+    @property
+    def stable(self) -> bool:
+        """The run went to its end and its whirl stayed below :data:`STABLE_WHIRL_AMPLITUDE`."""
+        return self.status == "done" and self.max_whirl_amplitude < STABLE_WHIRL_AMPLITUDE
 
 
 @dataclass(frozen=True)
@@ -115,6 +137,57 @@ class RunUpSchedule:
     @property
     def ramp_tau(self) -> float:
         return (self.end_bearing_number - self.start_bearing_number) / self.rate
+
+    @property
+    def margin_to_critical(self) -> float:
+        """``1 - Lambda_end / Lambda_c`` at the chosen damping."""
+        return 1.0 - self.end_bearing_number / self.critical_bearing_number
+
+    @property
+    def margin_to_fold(self) -> float | None:
+        """``1 - Lambda_end / Lambda_fold`` (``None``: no fold known at the chosen damping)."""
+        if not math.isfinite(self.fold_bearing_number):
+            return None
+        return 1.0 - self.end_bearing_number / self.fold_bearing_number
+
+    def speed_rpm(self, bearing_number: float) -> float | None:
+        """The speed (rpm) of a bearing number of this schedule (``None`` for NaN: not found)."""
+        return self.model.bearing.speed_rpm_at(bearing_number) if math.isfinite(bearing_number) else None
+
+    def stability_curve(self) -> list[tuple[float, float | None, float | None]]:
+        """``(foil_damping, critical_speed_rpm, fold_speed_rpm)`` at each damping of the design (the fold
+        only where it was computed and found)."""
+        fold_of = dict(zip(self.fold_dampings.tolist(), self.fold_bearing_numbers.tolist(), strict=True))
+        return [
+            (float(d), self.speed_rpm(lc), self.speed_rpm(fold_of.get(float(d), math.nan)))
+            for d, lc in zip(self.dampings, self.critical_bearing_numbers, strict=True)
+        ]
+
+    def write_path_csv(self, path: str | Path) -> Path:
+        """:meth:`path` as ``time_s, speed_rpm, foil_damping`` (``gfb schedule``'s ``schedule.csv``)."""
+        path, p = Path(path), self.path()
+        with path.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["time_s", "speed_rpm", "foil_damping"])
+            for row in zip(p["time_s"], p["speed_rpm"], p["foil_damping"], strict=True):
+                w.writerow([f"{x:.8g}" for x in row])
+        return path
+
+    def write_stability_curve_csv(self, path: str | Path) -> Path:
+        """:meth:`stability_curve` (``gfb schedule``'s ``stability_curve.csv``; empty cells: none)."""
+        path = Path(path)
+        with path.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["foil_damping", "critical_speed_rpm", "fold_speed_rpm"])
+            for d, *cells in self.stability_curve():
+                w.writerow([f"{d:.6g}"] + ["" if c is None else f"{c:.1f}" for c in cells])
+        return path
+
+    def plot(self, path: str | Path | None = None) -> Figure:
+        """The schedule on the stability map (:func:`gfb_env.plotting.plot_schedule`)."""
+        from gfb_env.plotting import plot_schedule
+
+        return plot_schedule(self, path)
 
     def path(self, n: int = 101) -> dict[str, np.ndarray]:
         """The schedule sampled at ``n`` points: ``time_s``, ``speed_rpm``, ``foil_damping``."""

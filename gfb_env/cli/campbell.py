@@ -8,9 +8,7 @@ is one line and exit code 2.
 from __future__ import annotations
 
 import argparse
-import csv
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -49,33 +47,15 @@ def cmd_campbell(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     cd = campbell_diagram(model, np.linspace(lo, hi, args.n_speeds), args.foil_damping, args.modes)
     wall = time.perf_counter() - t0
-    delta = cd.log_decrement
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        _write_csv(cd, out / "campbell.csv", args.modes)
-        _plot_campbell(cd, out / "campbell.png", args.nondimensional)
-    ok = np.isfinite(delta)
-    jmin = np.unravel_index(np.nanargmin(np.where(ok, delta, np.inf)), delta.shape) if ok.any() else None
-    on = cd.onset_eigenvalue
-    d = {
-        "structure": cd.structure,
-        "grid": cd.grid,
-        "foil_stiffness": cd.foil_stiffness,
-        "foil_damping": cd.foil_damping,
-        "modes": args.modes,
-        "n_speeds": len(cd.bearing_number),
-        "bearing_number_range": [lo, hi],
-        "speed_rpm_range": [b.speed_rpm_at(lo), b.speed_rpm_at(hi)],
-        "onset_bearing_number": cd.onset_bearing_number,
-        "onset_speed_rpm": cd.onset_speed_rpm,
-        "onset_frequency_hz": None if on is None else b.frequency_hz(on.imag),
-        "onset_whirl_frequency_ratio": None if on is None else on.imag / cd.onset_bearing_number,
-        "min_log_decrement": None if jmin is None else float(delta[jmin]),
-        "min_log_decrement_speed_rpm": None if jmin is None else float(cd.speed_rpm[jmin[0]]),
-        "equilibria_failed": int(np.sum(~np.isfinite(cd.eccentricity))),
-        "files": {} if out is None else {k: str(out / k) for k in _CAMPBELL_FILES},
-        "wall_time_s": wall,
-    }
+        cd.write_csv(out / "campbell.csv")
+        cd.plot(out / "campbell.png", args.nondimensional)
+    d = cd.summary()
+    d["bearing_number_range"] = [lo, hi]
+    d["speed_rpm_range"] = [b.speed_rpm_at(lo), b.speed_rpm_at(hi)]
+    d["files"] = {} if out is None else {k: str(out / k) for k in _CAMPBELL_FILES}
+    d["wall_time_s"] = wall
     if out is not None:
         (out / "summary.json").write_text(jsonio.dumps(d, indent=2))
     if args.json:
@@ -92,87 +72,6 @@ def cmd_campbell(args: argparse.Namespace) -> int:
             )
         print(f"  wrote {', '.join(d['files'].values()) or 'no files (--out DIR)'} ({wall:.1f} s)")
     return 0
-
-
-def _write_csv(cd, path: Path, modes: int) -> None:
-    f_hz, zeta, delta, ratio = cd.frequency_hz, cd.damping_ratio, cd.log_decrement, cd.whirl_frequency_ratio
-    with path.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(
-            [
-                "speed_rpm",
-                "bearing_number",
-                "mode",
-                "frequency_hz",
-                "angular_frequency",
-                "whirl_frequency_ratio",
-                "growth_rate",
-                "damping_ratio",
-                "log_decrement",
-                "rotor_participation",
-                "eccentricity",
-            ]
-        )
-        for j in range(len(cd.bearing_number)):
-            for k in range(modes):
-                ev = cd.eigenvalues[j, k]
-                w.writerow(
-                    [f"{x:.8g}" if isinstance(x, float) else x for x in (
-                        float(cd.speed_rpm[j]), float(cd.bearing_number[j]), k + 1, float(f_hz[j, k]),
-                        float(ev.imag), float(ratio[j, k]), float(ev.real), float(zeta[j, k]),
-                        float(delta[j, k]), float(cd.participation[j, k]), float(cd.eccentricity[j]),
-                    )]
-                )  # fmt: skip
-
-
-def _plot_campbell(cd, path: Path, nondimensional: bool) -> None:
-    from gfb_env.plotting import plt
-
-    if nondimensional:
-        x, xl = cd.bearing_number, r"bearing number $\Lambda$"
-        y, yl = cd.eigenvalues.imag, r"whirl frequency $\mathrm{Im}\,\lambda$ (rad per unit $\tau$)"
-        one_x = cd.bearing_number
-        x_on = cd.onset_bearing_number
-    else:
-        x, xl = cd.speed_rpm, "rotor speed (rpm)"
-        y, yl = cd.frequency_hz, "damped natural frequency (Hz)"
-        one_x = cd.speed_rpm / 60.0
-        x_on = cd.onset_speed_rpm
-    delta = cd.log_decrement
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 7.5), sharex=True, constrained_layout=True)
-    colours = ["tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:pink"]
-    for k in range(y.shape[1]):
-        a1.plot(x, y[:, k], "-", color=colours[k], lw=1.5, label=f"rotor mode {k + 1}")
-        bad = delta[:, k] < 0
-        a1.plot(x[bad], y[bad, k], "o", ms=4, color="tab:red", label="unstable" if k == 0 else None)
-        a2.plot(x, delta[:, k], "-", color=colours[k], lw=1.5, label=f"rotor mode {k + 1}")
-    a1.plot(x, one_x, "k--", lw=1, label="1x (synchronous)")
-    a1.plot(x, 0.5 * one_x, "k:", lw=1, label="0.5x")
-    top = np.nanmax(y[:, 0]) if np.isfinite(y[:, 0]).any() else 1.0
-    a1.set_ylim(0, 2.2 * top)
-    a1.set_ylabel(yl)
-    a1.legend(fontsize=8, loc="upper left")
-    a1.grid(alpha=0.3)
-    a1.set_title(
-        f"Campbell diagram: {cd.structure} foil, K_W={cd.foil_stiffness:.3g}, D_W={cd.foil_damping:.3g}, "
-        f"grid {cd.grid}",
-        fontsize=10,
-    )
-    a2.axhline(0, color="k", lw=0.8)
-    fin = delta[np.isfinite(delta)]
-    if fin.size:
-        a2.set_ylim(max(fin.min(), -3) - 0.3, min(fin.max(), 8) + 0.3)
-    if x_on is not None:
-        lab = f"onset {x_on:.4f}" if nondimensional else f"critical speed {x_on:.0f} rpm"
-        for a in (a1, a2):
-            a.axvline(x_on, color="tab:red", lw=1, ls="-.")
-        a2.plot([x_on], [0], "o", color="tab:red", label=lab)
-    a2.set_ylabel(r"logarithmic decrement $\delta = -2\pi\,\mathrm{Re}\lambda/\mathrm{Im}\lambda$")
-    a2.set_xlabel(xl)
-    a2.legend(fontsize=8, loc="upper right")
-    a2.grid(alpha=0.3)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
 
 
 def register(subparsers) -> None:

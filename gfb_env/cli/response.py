@@ -7,13 +7,12 @@ the handler, turned into exit 2 by :func:`gfb_env.cli.main`).
 from __future__ import annotations
 
 import argparse
-import csv
 import time
-from pathlib import Path
 
 import numpy as np
 
 from gfb_env import jsonio
+from gfb_env.analysis.response import ResponseCurve
 from gfb_env.scripting import (
     add_model_options,
     add_out_option,
@@ -33,11 +32,7 @@ __all__ = ["register", "cmd_response"]
 _FILES = ("response.csv", "response.png", "summary.json")
 #: Default speed range in Lambda (Table 1: 6 000 - 60 000 rpm).
 _LAMBDA_RANGE = (0.1, 1.0)
-_COLUMNS = (
-    "speed_rpm", "bearing_number", "xi_amplitude", "eta_amplitude", "xi_phase_deg", "eta_phase_deg",
-    "semi_major", "semi_minor", "forward", "stable", "growth_rate", "xi_amplitude_um", "eta_amplitude_um",
-    "semi_major_um", "semi_minor_um",
-)  # fmt: skip
+_COLUMNS = ResponseCurve.COLUMNS
 
 
 def cmd_response(args: argparse.Namespace) -> int:
@@ -69,7 +64,7 @@ def cmd_response(args: argparse.Namespace) -> int:
     lams = np.linspace(lo, hi, args.n_speeds)
     curve = response_curve(model, lams, unbalance, args.foil_damping)
     if at is None:
-        at = max((r for r in curve if r.stable), key=lambda r: r.semi_major, default=curve[0])
+        at = curve.peak
     verify = None
     if args.verify:
         if not at.stable:
@@ -78,47 +73,12 @@ def cmd_response(args: argparse.Namespace) -> int:
                 f"{at.growth_rate:.3g}); the transient has no synchronous steady orbit there"
             )
         orb = transient_synchronous_orbit(model, at.bearing_number, unbalance, args.foil_damping)
-        verify = {
-            "xi_amplitude": abs(orb.xi),
-            "eta_amplitude": abs(orb.eta),
-            "xi_relative_error": abs(orb.xi - at.xi) / abs(at.xi),
-            "eta_relative_error": abs(orb.eta - at.eta) / abs(at.eta),
-            "residual_rms": orb.residual_rms,
-        }
+        verify = orb.compare(at)
     wall = time.perf_counter() - t0
-    # phases unwrapped along the speed range (a lag growing through 90 degrees at a resonance)
-    xi_ph = np.degrees(np.unwrap(np.radians([r.xi_phase_deg for r in curve])))
-    eta_ph = np.degrees(np.unwrap(np.radians([r.eta_phase_deg for r in curve])))
-    rows = []
-    for r, pxi, peta in zip(curve, xi_ph, eta_ph, strict=True):
-        rows.append(
-            (
-                b.speed_rpm_at(r.bearing_number),
-                r.bearing_number,
-                r.xi_amplitude,
-                r.eta_amplitude,
-                float(pxi),
-                float(peta),
-                r.semi_major,
-                r.semi_minor,
-                int(r.forward),
-                int(bool(r.stable)),
-                r.growth_rate,
-                b.micrometres(r.xi_amplitude),
-                b.micrometres(r.eta_amplitude),
-                b.micrometres(r.semi_major),
-                b.micrometres(r.semi_minor),
-            )  # fmt: skip
-        )
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        with (out / "response.csv").open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(_COLUMNS)
-            for row in rows:
-                w.writerow([f"{x:.8g}" if isinstance(x, float) else x for x in row])
-        _plot(np.array(rows), at, b, out / "response.png", model, unbalance)
-    unstable = [r.bearing_number for r in curve if not r.stable]
+        curve.write_csv(out / "response.csv")
+        curve.plot(at, out / "response.png")
     d = {
         "structure": model.structure.value,
         "grid": str(model.grid),
@@ -145,7 +105,7 @@ def cmd_response(args: argparse.Namespace) -> int:
         "bearing_number_range": [lo, hi],
         "speed_rpm_range": [b.speed_rpm_at(lo), b.speed_rpm_at(hi)],
         "n_speeds": len(curve),
-        "first_unstable_bearing_number": min(unstable) if unstable else None,
+        "first_unstable_bearing_number": curve.first_unstable_bearing_number,
         "verify": verify,
         "files": {} if out is None else {k: str(out / k) for k in _FILES},
         "wall_time_s": wall,
@@ -172,43 +132,6 @@ def cmd_response(args: argparse.Namespace) -> int:
             )
         print(f"  wrote {', '.join(d['files'].values()) or 'no files (--out DIR)'} ({wall:.1f} s)")
     return 0
-
-
-def _plot(rows: np.ndarray, at, bearing, path: Path, model, unbalance) -> None:
-    from gfb_env.plotting import plt
-
-    rpm = rows[:, 0]
-    stable = rows[:, 9] > 0
-    fig, axs = plt.subplots(3, 1, figsize=(8, 9), sharex=True, constrained_layout=True)
-    for ax in axs:
-        if not stable.all():
-            ax.axvspan(rpm[~stable].min(), rpm.max(), color="0.9", label="unstable equilibrium")
-    ax = axs[0]
-    ax.semilogy(rpm, rows[:, 11], label=r"$\xi$ (horizontal)")
-    ax.semilogy(rpm, rows[:, 12], label=r"$\eta$ (vertical)")
-    ax.plot(bearing.speed_rpm_at(at.bearing_number), bearing.micrometres(at.eta_amplitude), "ko", ms=4)
-    ax.set_ylabel("amplitude, 0-peak (um)")
-    ax.legend(fontsize=8)
-    ax.set_title(
-        f"unbalance response, {model.structure.value} foil, K_W={model.foil_stiffness:.3g}, "
-        f"U={unbalance.magnitude:.3g} ({bearing.micrometres(unbalance.magnitude):.3g} um)"
-    )
-    ax = axs[1]
-    ax.plot(rpm, rows[:, 4], label=r"$\xi$")
-    ax.plot(rpm, rows[:, 5], label=r"$\eta$")
-    ax.set_ylabel("phase lag behind the\nunbalance force (deg)")
-    ax.legend(fontsize=8)
-    ax = axs[2]
-    ax.plot(rpm, rows[:, 13], label="semi-major")
-    ax.plot(rpm, rows[:, 14], label="semi-minor")
-    back = rows[:, 8] == 0
-    if back.any():
-        ax.plot(rpm[back], rows[back, 13], "rx", ms=4, label="backward whirl")
-    ax.set_ylabel("orbit semi-axes (um)")
-    ax.set_xlabel("speed (rpm)")
-    ax.legend(fontsize=8)
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
 
 
 def register(subparsers) -> None:

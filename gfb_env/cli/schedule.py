@@ -8,14 +8,10 @@ schedule (CSV), the map with the path (PNG) and a summary (JSON).
 from __future__ import annotations
 
 import argparse
-import csv
-import math
 import time
-from pathlib import Path
-
-import numpy as np
 
 from gfb_env import jsonio
+from gfb_env.analysis.schedule import STABLE_WHIRL_AMPLITUDE
 from gfb_env.model import Grid
 from gfb_env.scripting import (
     add_bearing_option,
@@ -32,10 +28,8 @@ from gfb_env.scripting import (
 
 __all__ = ["register", "cmd_schedule", "WHIRL_THRESHOLD"]
 
-#: The verified run counts as stable when its non-synchronous motion over the last 500 tau of the hold
-#: stays below this (units of C): the environments' stability threshold; a developed whirl is 0.3-1.2 C,
-#: the decaying start perturbation and the equilibrium's drift are orders of magnitude smaller.
-WHIRL_THRESHOLD = 0.05
+#: The verified run's stability threshold (units of C), kept under its old name.
+WHIRL_THRESHOLD = STABLE_WHIRL_AMPLITUDE
 
 _FILES = ("schedule.csv", "stability_curve.csv", "schedule.png", "summary.json")
 
@@ -192,30 +186,15 @@ def cmd_schedule(args: argparse.Namespace) -> int:
 
         lin = unbalance_response(model, sch.end_bearing_number, unbalance, sch.foil_damping, stability=False)
 
-    def rpm(lam: float) -> float | None:
-        return b.speed_rpm_at(lam) if math.isfinite(lam) else None
-
+    rpm = sch.speed_rpm
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        path = sch.path()
-        with (out / "schedule.csv").open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["time_s", "speed_rpm", "foil_damping"])
-            for row in zip(path["time_s"], path["speed_rpm"], path["foil_damping"], strict=True):
-                w.writerow([f"{x:.8g}" for x in row])
-        fold_of = dict(zip(sch.fold_dampings.tolist(), sch.fold_bearing_numbers.tolist(), strict=True))
-
-        with (out / "stability_curve.csv").open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["foil_damping", "critical_speed_rpm", "fold_speed_rpm"])
-            for d, lc in zip(sch.dampings, sch.critical_bearing_numbers, strict=True):
-                f = fold_of.get(float(d), math.nan)
-                cells = [rpm(x) for x in (lc, f)]
-                w.writerow([f"{d:.6g}"] + ["" if c is None else f"{c:.1f}" for c in cells])
-        _plot(sch, out / "schedule.png")
+        sch.write_path_csv(out / "schedule.csv")
+        sch.write_stability_curve_csv(out / "stability_curve.csv")
+        sch.plot(out / "schedule.png")
     um = b.clearance_m * 1e6
     lam_end = sch.end_bearing_number
-    verified_stable = ver.status == "done" and ver.max_whirl_amplitude < WHIRL_THRESHOLD
+    verified_stable = ver.stable
     d = {
         "structure": "viscoelastic",
         "grid": str(model.grid),
@@ -229,10 +208,8 @@ def cmd_schedule(args: argparse.Namespace) -> int:
         "end_speed_rpm": rpm(lam_end),
         "start_speed_rpm": rpm(sch.start_bearing_number),
         "margin": sch.margin,
-        "margin_to_critical": 1.0 - lam_end / sch.critical_bearing_number,
-        "margin_to_fold": (
-            1.0 - lam_end / sch.fold_bearing_number if math.isfinite(sch.fold_bearing_number) else None
-        ),
+        "margin_to_critical": sch.margin_to_critical,
+        "margin_to_fold": sch.margin_to_fold,
         "acceleration_rpm_s": args.acceleration,
         "ramp_time_s": b.seconds(sch.ramp_tau),
         "hold_time_s": b.seconds(sch.hold_tau),
@@ -285,54 +262,3 @@ def cmd_schedule(args: argparse.Namespace) -> int:
             else f"  no files written: --out DIR ({d['wall_time_s']:.1f} s)"
         )
     return 0 if verified_stable else 1
-
-
-def _plot(sch, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    b = sch.model.bearing
-    krpm = np.vectorize(lambda lam: b.speed_rpm_at(lam) / 1000.0 if np.isfinite(lam) else np.nan)
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    ax.semilogx(sch.dampings, krpm(sch.critical_bearing_numbers), "k.-", label="critical speed (Lambda_c)")
-    ax.semilogx(
-        sch.dampings,
-        krpm((1 - sch.margin) * sch.critical_bearing_numbers),
-        "k:",
-        lw=0.8,
-        label=f"{sch.margin:.0%} margin",
-    )
-    if len(sch.fold_dampings):
-        ax.semilogx(sch.fold_dampings, krpm(sch.fold_bearing_numbers), "rs", label="fold of cycles")
-        ok = np.isfinite(sch.fold_bearing_numbers)
-        for d, f in zip(sch.fold_dampings[ok], sch.fold_bearing_numbers[ok], strict=True):
-            lc = float(np.interp(np.log(d), np.log(sch.dampings), sch.critical_bearing_numbers))
-            ax.fill_between([d / 1.08, d * 1.08], krpm(f), krpm(lc), color="r", alpha=0.2, lw=0)
-    d = sch.foil_damping
-    curves = krpm(np.r_[sch.critical_bearing_numbers, (1 - sch.margin) * sch.critical_bearing_numbers])
-    lo = float(np.nanmin(np.r_[curves, krpm(sch.end_bearing_number)])) * 0.97
-    hi = float(np.nanmax(curves)) * 1.01
-    ax.set_ylim(lo, hi)
-    start = float(krpm(sch.start_bearing_number))
-    ax.annotate(
-        "",
-        xy=(d, krpm(sch.end_bearing_number)),
-        xytext=(d, max(start, lo)),
-        arrowprops={"arrowstyle": "->", "color": "b", "lw": 2},
-    )
-    ax.text(d * 1.1, lo + 0.02 * (hi - lo), f"ramp from {start:.1f} krpm", color="b", fontsize=8)
-    ax.plot([d], [krpm(sch.end_bearing_number)], "bo", label="schedule (ramp at D_W, hold)")
-    ax.axhline(float(krpm(sch.target_bearing_number)), color="b", ls="--", lw=0.8, label="target")
-    ax.set(
-        xlabel="foil damping D_W",
-        ylabel="speed (krpm)",
-        title=f"run-up schedule: {'feasible' if sch.feasible else 'target infeasible'}, "
-        f"K_W = {sch.model.foil_stiffness:.3g}, {sch.model.grid}",
-    )
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7, loc="lower left")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)

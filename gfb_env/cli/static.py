@@ -3,13 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import math
-
-import numpy as np
 
 from gfb_env import jsonio
-from gfb_env.equilibrium import find_equilibrium
-from gfb_env.model import GFBModel
+from gfb_env.equilibrium import equilibrium_summary, find_equilibrium
 from gfb_env.scripting import (
     add_bearing_option,
     add_model_options,
@@ -20,7 +16,7 @@ from gfb_env.scripting import (
     print_table,
 )
 
-__all__ = ["cmd_bearing", "cmd_equilibrium", "cmd_params", "equilibrium_summary", "register"]
+__all__ = ["cmd_bearing", "cmd_equilibrium", "cmd_params", "register"]
 
 
 def cmd_params(args: argparse.Namespace) -> int:
@@ -59,30 +55,6 @@ def cmd_bearing(args: argparse.Namespace) -> int:
         if not out["warnings"]:
             print("no warnings (specific load, DellaCorte load capacity, C/R, surface speed)")
     return 0
-
-
-def equilibrium_summary(model: GFBModel, s: np.ndarray, bearing_number: float) -> dict:
-    b = model.bearing
-    force = model.bearing_force(s)
-    eps = model.eccentricity(s)
-    hmin = model.min_film_thickness(s)
-    fmag = float(np.hypot(*force))
-    return {
-        "structure": model.structure.value,
-        "grid": str(model.grid),
-        "bearing_number": bearing_number,
-        "speed_rpm": b.speed_rpm_at(bearing_number),
-        "foil_stiffness": model.foil_stiffness,
-        "eccentricity": eps,
-        "attitude_angle_deg": math.degrees(model.attitude_angle(s)),
-        "min_film_thickness": hmin,
-        "max_pressure": float(model.layout.pressure(s).max()),
-        "bearing_force": fmag,
-        "load": model.load,
-        "eccentricity_um": b.micrometres(eps),
-        "min_film_thickness_um": b.micrometres(hmin),
-        "bearing_force_N": b.newtons(fmag),
-    }
 
 
 def cmd_equilibrium(args: argparse.Namespace) -> int:

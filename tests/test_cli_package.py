@@ -262,3 +262,15 @@ def test_a_solver_failure_is_exit_1_with_one_line(capsys, monkeypatch):
     monkeypatch.setattr(static, "find_equilibrium", singular)
     code, _, err = run(capsys, "equilibrium", "--bearing-number", "0.6", "--grid", "21x5")
     assert code == 1 and err.strip() == "gfb equilibrium: error: Singular matrix", err
+
+
+def test_a_several_line_failure_is_still_one_line(capsys, monkeypatch):
+    import gfb_env.cli.static as static
+    from gfb_env.equilibrium import EquilibriumError
+
+    def fails(*a, **k):
+        raise EquilibriumError("Newton did not converge\n  residual 1e-3\n")
+
+    monkeypatch.setattr(static, "find_equilibrium", fails)
+    code, _, err = run(capsys, "equilibrium", "--bearing-number", "0.6", "--grid", "21x5")
+    assert code == 1 and err == "gfb equilibrium: error: Newton did not converge; residual 1e-3\n", err

@@ -105,7 +105,9 @@ def main(argv: list[str] | None = None) -> int:
             code = 1
         else:
             raise
-        print(f"gfb {args.command}: error: {exc}", file=sys.stderr)
+        # one line even when a library's message has several
+        message = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+        print(f"gfb {args.command}: error: {message}", file=sys.stderr)
         return code
 
 

@@ -70,7 +70,11 @@ def cmd_campbell(args: argparse.Namespace) -> int:
                 f"{cd.onset_speed_rpm:.0f} rpm, whirl {d['onset_frequency_hz']:.1f} Hz "
                 f"({d['onset_whirl_frequency_ratio']:.3f} x)"
             )
-        print(f"  wrote {', '.join(d['files'].values()) or 'no files (--out DIR)'} ({wall:.1f} s)")
+        print(
+            f"  wrote {', '.join(d['files'].values())} ({wall:.1f} s)"
+            if out
+            else f"  no files written (--out DIR) ({wall:.1f} s)"
+        )
     return 0
 
 

@@ -130,7 +130,11 @@ def cmd_response(args: argparse.Namespace) -> int:
                 f"  transient check: xi error {verify['xi_relative_error']:.2%}, eta error "
                 f"{verify['eta_relative_error']:.2%}"
             )
-        print(f"  wrote {', '.join(d['files'].values()) or 'no files (--out DIR)'} ({wall:.1f} s)")
+        print(
+            f"  wrote {', '.join(d['files'].values())} ({wall:.1f} s)"
+            if out
+            else f"  no files written (--out DIR) ({wall:.1f} s)"
+        )
     return 0
 
 

@@ -195,7 +195,7 @@ def cmd_runup(args: argparse.Namespace) -> int:
         print(
             f"  wrote {out}/ ({d['wall_time_s']:.1f} s)"
             if out
-            else f"  no files written: --out DIR ({d['wall_time_s']:.1f} s)"
+            else f"  no files written (--out DIR) ({d['wall_time_s']:.1f} s)"
         )
     return 0 if ru.ok else 1
 

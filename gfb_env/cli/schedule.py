@@ -259,6 +259,6 @@ def cmd_schedule(args: argparse.Namespace) -> int:
         print(
             f"  wrote {out}/ ({d['wall_time_s']:.1f} s)"
             if out
-            else f"  no files written: --out DIR ({d['wall_time_s']:.1f} s)"
+            else f"  no files written (--out DIR) ({d['wall_time_s']:.1f} s)"
         )
     return 0 if verified_stable else 1

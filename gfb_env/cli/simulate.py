@@ -140,7 +140,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         if out_dir is not None:
             print("wrote " + ", ".join(str(out_dir / f) for f in _SIMULATE_FILES))
         else:
-            print("no files written (--out DIR writes trajectory.csv, simulation.png, summary.json)")
+            print("no files written (--out DIR)")
     return 0 if res.ok else 1
 
 

@@ -224,7 +224,8 @@ def cmd_map(args: argparse.Namespace) -> int:
                 f"viscoelastic max Lambda_c={lmax:.5f} at D_W*={dopt:.4g}"
             )
         print(
-            "wrote " + (", ".join(str(p) for p in paths.values()) or "no files (--out DIR)"), file=sys.stdout
+            "wrote " + ", ".join(str(p) for p in paths.values()) if paths else "no files written (--out DIR)",
+            file=sys.stdout,
         )
     return 0
 

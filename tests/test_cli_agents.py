@@ -7,7 +7,10 @@ Every refusal: exit code 2 and one line on stderr, before any env is stepped or 
 from __future__ import annotations
 
 import json
+import signal
 import socket
+import subprocess
+import sys
 import time
 from pathlib import Path
 from types import SimpleNamespace
@@ -292,6 +295,34 @@ def test_a_killed_session_keeps_its_record_in_run_json(tmp_path, monkeypatch):
         (1, 32, 64, "finished"),
     ]
     assert s[0]["env_seed"] != s[1]["env_seed"]
+
+
+def test_sigkill_then_resume_lists_both_sessions(tmp_path):
+    """Defect 14 as the issue met it: ``python -m gfb_agents.train`` SIGKILLed after its first checkpoint,
+    then the same command (with a total just past the checkpoint): ``run.json`` lists both sessions."""
+    yml = _tiny_yaml(tmp_path)
+    out = tmp_path / "exp"
+    argv = ["--algo", "ppo", "--env", ENV, "--hyperparams", str(yml), "--checkpoint-freq", "32"]
+    argv += ["--eval-freq", "100000", "--eval-episodes", "1", "--env-kwargs", '{"max_episode_steps": 8}']
+    argv += ["--out", str(out), "--no-progress-bar", "--no-tensorboard"]
+    latest = out / "seed0" / "checkpoints" / "latest.json"
+    cmd = [sys.executable, "-m", "gfb_agents.train", *argv, "--timesteps", "1000000"]  # never finishes
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while not latest.exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        _, err = proc.communicate()
+    assert latest.exists(), err.decode()[-2000:]
+    assert not (out / "seed0" / "run.json").exists()
+    n = json.loads(latest.read_text())["num_timesteps"]
+    assert n >= 32 and n % 16 == 0  # PPO checkpoints on whole rollouts
+    assert train_main([*argv, "--timesteps", str(n + 32)]) == 0
+    meta = json.loads((out / "seed0" / "run.json").read_text())
+    assert meta["timesteps"] == n + 32 and len(meta["sessions"]) == 2  # it was 1: the resumed one
+    assert [(r["start_timesteps"], r["ended"]) for r in meta["sessions"]] == [(0, "killed"), (n, "finished")]
 
 
 def test_ppo_resumed_after_ctrl_c_mid_rollout_ends_at_exactly_the_total(tmp_path, monkeypatch, capsys):

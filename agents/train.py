@@ -15,7 +15,7 @@ Seeds (:mod:`gfb_agents.seeds`): independent training run ``r`` (``--seeds 0-4``
 Python / NumPy / torch with ``r`` and resets training env ``i`` with ``train_env_seed(r, i, session)``
 (inside the TRAIN range); model selection plays the first ``--eval-episodes`` VALIDATION seeds; the TEST
 seeds are never touched here.  Memory: ``--algo recurrentppo`` (sb3-contrib's LSTM policy) or
-``--frame-stack K`` (the last K observations, SB3's ``VecFrameStack``) for PPO / SAC.
+``--frame-stack K`` (the last K observations, SB3's ``VecFrameStack``, K <= :data:`MAX_FRAME_STACK`) for PPO.
 
 Each run lives in ``<out>/seed<r>`` (``--out`` default ``runs/<env>_<algo>``, gitignored)::
 
@@ -30,7 +30,17 @@ Each run lives in ``<out>/seed<r>`` (``--out`` default ``runs/<env>_<algo>``, gi
                                      steps/s, with and without validation), sessions, best validation
 
 Resuming: rerunning the same command continues every run from its last checkpoint (a finished run is
-skipped), so a killed or Ctrl-C'd sweep loses at most ``--checkpoint-freq`` steps per run.  Several runs
+skipped), so a killed or Ctrl-C'd sweep loses at most ``--checkpoint-freq`` steps per run; ``run.json``
+lists every session (``"ended"``: ``finished``, ``interrupted`` or ``killed``: a session that ended without
+its final save, whose steps after its last checkpoint were lost).  A run ends at exactly its total:
+PPO / RecurrentPPO collect whole rollouts of ``n_steps * n_envs`` steps, so their total is rounded up to
+whole rollouts when the run starts (as SB3 would train anyway; said on stderr, ``requested_timesteps`` in
+``run.json``), their checkpoints fall on the first rollout boundary at or after each ``--checkpoint-freq``
+steps (the weights have learnt from every step counted), and a Ctrl-C drops the unfinished rollout (the
+count goes back to the last whole one).  ``best/`` is replaced as a whole (written beside it, synced,
+renamed), so a kill leaves the old or the new best, never a mixture.  Bad arguments (env kwargs,
+hyperparameters, an unwritable ``--out``, a folder holding a run with other settings, a scheduler that does
+not answer) end the command with exit code 2 and one line before any run starts.  Several runs
 train in parallel with joblib (``--n-jobs``) or on a Dask cluster (``--scheduler``; the workers need this
 package and a shared ``--out``).
 """
@@ -76,6 +86,13 @@ __all__ = [
 
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
 ALGOS = ("ppo", "sac", "recurrentppo")
+#: the longest ``--frame-stack``: 64 control steps is a quarter of the longest episode (250 steps) and
+#: more history than identifying the bearing needs (the rules use a few steps); the memory grows as
+#: ``n_steps * n_envs * k * obs_dim * 4`` bytes in PPO's rollout buffer (6.9 GiB at k = 100 000, 4.7 MB
+#: at 64).  Longer memory: ``--algo recurrentppo``.
+MAX_FRAME_STACK = 64
+#: seconds to wait for a Dask scheduler's TCP port before refusing ``--scheduler`` (Dask waits 30 s)
+SCHEDULER_CONNECT_TIMEOUT_S = 5.0
 #: keys of the zoo files that are not algorithm keyword arguments
 ZOO_KEYS = ("n_timesteps", "policy", "n_envs", "normalize", "env_wrapper", "frame_stack", "callback")
 
@@ -91,11 +108,20 @@ def _eval_policy_kwargs(text: str) -> dict:
     """Evaluate a zoo-style ``policy_kwargs`` string with a restricted namespace (``dict``, ``nn``)."""
     import torch.nn as nn
 
-    tree = ast.parse(text, mode="eval")
+    try:
+        tree = ast.parse(text, mode="eval")
+    except SyntaxError as exc:
+        raise ValueError(f"policy_kwargs is not a Python expression: {text!r} ({exc.msg})") from None
     for node in ast.walk(tree):
         if isinstance(node, ast.Name) and node.id not in ("dict", "nn", "True", "False", "None"):
             raise ValueError(f"policy_kwargs may only use dict(...) and nn.*, got name {node.id!r}")
-    return eval(compile(tree, "<policy_kwargs>", "eval"), {"__builtins__": {}}, {"dict": dict, "nn": nn})
+    try:
+        value = eval(compile(tree, "<policy_kwargs>", "eval"), {"__builtins__": {}}, {"dict": dict, "nn": nn})
+    except Exception as exc:  # noqa: BLE001 - e.g. nn.NoSuchLayer, dict(1): one line naming the key
+        raise ValueError(f"policy_kwargs {text!r}: {type(exc).__name__}: {exc}") from None
+    if not isinstance(value, dict):
+        raise ValueError(f"policy_kwargs must evaluate to a dict, got {value!r}")
+    return value
 
 
 def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict[str, Any]:
@@ -103,9 +129,24 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
     p = Path(path) if path is not None else HYPERPARAMS_DIR / f"{algo}.yml"
     if not p.exists():
         raise FileNotFoundError(f"no hyperparameter file {p}")
-    table = yaml.safe_load(p.read_text()) or {}
+    if not p.is_file():
+        raise ValueError(f"hyperparameter file {p} is not a regular file")
+    try:
+        table = yaml.safe_load(p.read_text()) or {}
+    except yaml.YAMLError as exc:
+        # PyYAML's message spans several lines (the problem, then the offending line with a caret)
+        mark, problem = getattr(exc, "problem_mark", None), getattr(exc, "problem", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        why = problem or " ".join(str(exc).split())
+        raise ValueError(f"{p} is not valid YAML{where}: {why}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"cannot read hyperparameter file {p}: {exc}") from None
+    if not isinstance(table, dict):
+        raise ValueError(f"{p} must map env ids to hyperparameter blocks, got a {type(table).__name__}")
     if env_id not in table:
         raise ValueError(f"{p} has no entry for {env_id!r}; known: {sorted(table)}")
+    if not isinstance(table[env_id], dict):
+        raise ValueError(f"{p}: the entry of {env_id!r} must be a mapping, got {table[env_id]!r}")
     return dict(table[env_id])
 
 
@@ -124,7 +165,12 @@ def _split_hyperparams(hp: dict[str, Any]) -> tuple[dict[str, Any], dict[str, An
         kwargs["policy_kwargs"] = _eval_policy_kwargs(kwargs["policy_kwargs"])
     norm = zoo.get("normalize", False)
     if isinstance(norm, str):
-        norm = ast.literal_eval(norm)
+        try:
+            norm = ast.literal_eval(norm)
+        except (ValueError, SyntaxError):
+            raise ValueError(f"normalize must be a bool or a dict literal, got {norm!r}") from None
+    if not isinstance(norm, (bool, dict)) and norm is not None:
+        raise ValueError(f"normalize must be a bool or a dict, got {norm!r}")
     if norm is True:
         norm = {"norm_obs": True, "norm_reward": True}
     zoo["normalize"] = norm or {}
@@ -211,6 +257,70 @@ def _atomic_write_json(path: Path, obj: Any) -> None:
     os.replace(tmp, path)
 
 
+def _fsync_entries(folder: Path) -> None:
+    """Flush ``folder``'s own entries (names) to disk: a rename is durable only once its folder is."""
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _fsync_folder(folder: Path) -> None:
+    """Flush every file of ``folder`` and its entries to disk (before a pointer or a rename names it)."""
+    for p in folder.iterdir():
+        if p.is_file():
+            with open(p, "rb") as fh:
+                os.fsync(fh.fileno())
+    _fsync_entries(folder)
+
+
+#: the file a complete ``best/`` folder is written with last (its presence in ``best.new`` marks it done)
+BEST_RECORD = "best.json"
+
+
+def _recover_best(best: Path) -> None:
+    """Finish or undo a ``best/`` replacement that a kill interrupted (see :func:`_replace_best`).
+
+    ``best.new`` holding :data:`BEST_RECORD` is complete (the record is written last); without it, it is a
+    torn write and is dropped.  ``best.old`` is the previous best, removed once ``best/`` is in place."""
+    new, old = best.with_name(best.name + ".new"), best.with_name(best.name + ".old")
+    if not best.exists():
+        if (new / BEST_RECORD).exists():
+            os.rename(new, best)  # killed between the two renames: the new best is complete
+        elif old.exists():
+            os.rename(old, best)  # (not reached by _replace_best's order; a hand-made state)
+    for p in (new, old):
+        if p.exists():
+            shutil.rmtree(p, ignore_errors=True)
+
+
+def _replace_best(best: Path, write) -> None:
+    """Replace the folder ``best`` by what ``write(folder)`` puts in a fresh folder beside it, as one step.
+
+    Linux cannot rename a folder onto a non-empty one, so: write ``best.new`` (``write``, then
+    :data:`BEST_RECORD` must be its last file), fsync it, rename ``best`` -> ``best.old`` and
+    ``best.new`` -> ``best``, remove ``best.old``.  A failure or kill while writing leaves the old ``best``
+    untouched; a kill between the renames leaves a complete ``best.new`` that :func:`_recover_best` puts in
+    place.  ``best/model.zip`` and ``best/best.json`` therefore always belong together."""
+    _recover_best(best)
+    new, old = best.with_name(best.name + ".new"), best.with_name(best.name + ".old")
+    new.mkdir()
+    try:
+        write(new)
+        if not (new / BEST_RECORD).exists():
+            raise RuntimeError(f"_replace_best: {BEST_RECORD} was not written")
+        _fsync_folder(new)
+    except BaseException:
+        shutil.rmtree(new, ignore_errors=True)
+        raise
+    if best.exists():
+        os.rename(best, old)
+    os.rename(new, best)
+    _fsync_entries(best.parent)
+    shutil.rmtree(old, ignore_errors=True)
+
+
 def latest_checkpoint(out: str | Path) -> dict | None:
     """The state of the run's last complete checkpoint (``checkpoints/latest.json``: ``num_timesteps``,
     ``session``, ``dir``, cumulative ``wall_s`` ...), or None.  The pointer is written last and atomically,
@@ -250,13 +360,32 @@ class _Session:
     """Book-keeping of one (re)start of a training run: wall time so far, validation history and best,
     checkpoint saving.  Shared by the callbacks."""
 
-    def __init__(self, config: TrainConfig, out: Path, session: int, prior: dict | None, total: int):
+    def __init__(
+        self,
+        config: TrainConfig,
+        out: Path,
+        session: int,
+        prior: dict | None,
+        total: int,
+        env_seed: int | None = None,
+        previous_sessions: list[dict] | None = None,
+        on_policy: bool = False,
+        run_config: dict | None = None,
+    ):
         self.c, self.out, self.session, self.total = config, out, session, total
         self.t0 = time.perf_counter()
         self.wall_before = float(prior["wall_s"]) if prior else 0.0
         self.val_wall_before = float(prior["validation_wall_s"]) if prior else 0.0
         self.val_wall = 0.0
         self.start_step = int(prior["num_timesteps"]) if prior else 0
+        self.env_seed = env_seed
+        self.previous_sessions = list(previous_sessions or [])
+        # PPO / RecurrentPPO learn from whole rollouts: the step count the weights have learnt from (the
+        # count at the start of the rollout being collected); a Ctrl-C goes back to it
+        self.on_policy = on_policy
+        self.trained_steps = self.start_step
+        self.run_config = run_config
+        _recover_best(out / "best")  # a kill while best/ was replaced: finish (or undo) it first
         vp = out / "validation.json"
         self.validation = (
             json.loads(vp.read_text()) if (prior and vp.exists()) else {"history": [], "best": None}
@@ -268,6 +397,22 @@ class _Session:
 
     def validation_wall(self) -> float:
         return self.val_wall_before + self.val_wall
+
+    def sessions(self, steps: int, ended: str) -> list[dict]:
+        """Every session's record so far: the earlier ones and this one up to ``steps`` (``ended``:
+        ``"running"`` in a checkpoint, ``"finished"`` or ``"interrupted"`` at the end; a resumed run turns
+        a ``"running"`` it finds into ``"killed"``)."""
+        return [
+            *self.previous_sessions,
+            {
+                "session": self.session,
+                "env_seed": self.env_seed,
+                "start_timesteps": self.start_step,
+                "end_timesteps": int(steps),
+                "wall_time_s": round(time.perf_counter() - self.t0, 1),
+                "ended": ended,
+            },
+        ]
 
     def log(self, model, what: str) -> None:
         steps = int(model.num_timesteps)
@@ -303,25 +448,38 @@ class _Session:
         self.validation["history"].append(rec)
         best = self.validation["best"]
         if best is None or rec["mean_return"] > best["mean_return"]:
+            self.save_best(model, rec)
             self.validation["best"] = rec
-            bd = self.out / "best"
-            bd.mkdir(exist_ok=True)
-            model.save(str(bd / "model.zip"))
-            vn = model.get_vec_normalize_env()
-            if vn is not None:
-                vn.save(str(bd / "vecnormalize.pkl"))
-            _atomic_write_json(bd / "best.json", {**rec, "validation_seeds": self.validation["seeds"]})
         self.val_wall += time.perf_counter() - t
         _atomic_write_json(self.out / "validation.json", self.validation)
         return rec
 
-    def checkpoint(self, model) -> None:
-        """Model, VecNormalize, SAC replay buffer and the step count in ``checkpoints/step_<N>/``, then
-        the pointer ``latest.json``; older checkpoints beyond ``keep_checkpoints`` are deleted."""
+    def save_best(self, model, rec: dict) -> None:
+        """``best/``: the model, its VecNormalize and ``best.json`` (``rec``), replaced as a whole
+        (:func:`_replace_best`): a failure or kill while saving keeps the previous best intact."""
+
+        def write(folder: Path) -> None:
+            model.save(str(folder / "model.zip"))
+            vn = model.get_vec_normalize_env()
+            if vn is not None:
+                vn.save(str(folder / "vecnormalize.pkl"))
+            _atomic_write_json(folder / BEST_RECORD, {**rec, "validation_seeds": self.validation["seeds"]})
+
+        _replace_best(self.out / "best", write)
+
+    def checkpoint(self, model, ended: str = "running") -> None:
+        """Model, VecNormalize, SAC replay buffer, the step count and the session records in
+        ``checkpoints/step_<N>/``, synced, then the pointer ``latest.json``; older checkpoints beyond
+        ``keep_checkpoints`` are deleted.  A folder of the same step (a Ctrl-C'd PPO run goes back to
+        its last checkpointed rollout) gets a suffix: the folder the pointer names is never rewritten."""
         n = int(model.num_timesteps)
         root = self.out / "checkpoints"
         d = root / f"step_{n:09d}"
-        d.mkdir(parents=True, exist_ok=True)
+        k = 0
+        while d.exists():
+            k += 1
+            d = root / f"step_{n:09d}_{k}"
+        d.mkdir(parents=True)
         model.save(str(d / "model.zip"))
         vn = model.get_vec_normalize_env()
         if vn is not None:
@@ -334,17 +492,42 @@ class _Session:
             "session": self.session,
             "wall_s": self.wall(),
             "validation_wall_s": self.validation_wall(),
+            # kept here, not only in run.json (written at the end): a killed session's record survives
+            "sessions": self.sessions(n, ended),
+            "config": self.run_config,
         }
         _atomic_write_json(d / "state.json", state)
+        _fsync_folder(d)
         _atomic_write_json(root / "latest.json", state)
         old = sorted(p for p in root.glob("step_*") if p.is_dir() and p.name != d.name)
         for p in old[: max(0, len(old) - (self.c.keep_checkpoints - 1))]:
             shutil.rmtree(p, ignore_errors=True)
 
 
+def _completes_collection(loc: dict) -> bool:
+    """Whether the env step SB3 just reported (its ``collect_rollouts`` locals ``loc``) completes what it
+    learns from next: the rollout of ``n_steps`` (on-policy) or the ``train_freq`` collection (off-policy)."""
+    if "n_rollout_steps" in loc:  # on-policy: n_steps counts the rollout's steps before this one
+        return loc["n_steps"] + 1 >= loc["n_rollout_steps"]
+    tf = loc.get("train_freq")
+    if tf is None:
+        return True  # a loop of another shape: never cut it
+    from stable_baselines3.common.type_aliases import TrainFrequencyUnit
+
+    if tf.unit == TrainFrequencyUnit.STEP:
+        return loc["num_collected_steps"] >= tf.frequency
+    return loc["num_collected_episodes"] + int(np.sum(loc["dones"])) >= tf.frequency
+
+
 def _session_callback(sess: _Session, total: int):
     """Validation every ``eval_freq`` and a checkpoint every ``checkpoint_freq`` env steps (validation
-    first, so a checkpoint's validation history is complete)."""
+    first, so a checkpoint's validation history is complete); the run stops at exactly ``total`` steps.
+
+    Off-policy (SAC) checkpoints at the step; on-policy (PPO, RecurrentPPO) ones at the start of the first
+    rollout at or after it, when the weights have learnt from every step counted (mid-rollout the
+    collected steps are not learnt yet, and a run resumed there would end past its total by up to one
+    rollout).  A collection that would run past ``total`` (a resumed SAC run; a checkpoint of an earlier
+    version) is cut at ``total``: its steps are not learnt from."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     c = sess.c
@@ -355,17 +538,26 @@ def _session_callback(sess: _Session, total: int):
             self.next_val = (n // c.eval_freq + 1) * c.eval_freq
             self.next_ckpt = (n // c.checkpoint_freq + 1) * c.checkpoint_freq
 
+        def _checkpoint(self, n: int) -> None:
+            sess.checkpoint(self.model)
+            self.next_ckpt = (n // c.checkpoint_freq + 1) * c.checkpoint_freq
+            sess.log(self.model, "checkpoint")
+
+        def _on_rollout_start(self) -> None:
+            n = int(self.model.num_timesteps)
+            sess.trained_steps = n  # after the update of the previous rollout
+            if sess.on_policy and n >= self.next_ckpt:
+                self._checkpoint(n)
+
         def _on_step(self) -> bool:
             n = int(self.model.num_timesteps)
             if n >= self.next_val:
                 sess.validate(self.model)
                 self.next_val = (n // c.eval_freq + 1) * c.eval_freq
                 sess.log(self.model, "validated")
-            if n >= self.next_ckpt:
-                sess.checkpoint(self.model)
-                self.next_ckpt = (n // c.checkpoint_freq + 1) * c.checkpoint_freq
-                sess.log(self.model, "checkpoint")
-            return True
+            if not sess.on_policy and n >= self.next_ckpt:
+                self._checkpoint(n)
+            return n < total or _completes_collection(self.locals)
 
     return SessionCallback()
 
@@ -396,8 +588,8 @@ class TrainConfig:
         eval_episodes: validation episodes per validation.
         checkpoint_freq: env steps between checkpoints (model, VecNormalize, SAC replay buffer, step).
         keep_checkpoints: checkpoints kept on disk (the newest; SAC's replay buffer is large).
-        frame_stack: stack the last ``k`` observations (SB3 ``VecFrameStack``; 1 = none): memory for
-            PPO / SAC.
+        frame_stack: stack the last ``k`` observations (SB3 ``VecFrameStack``; 1 = none, at most
+            :data:`MAX_FRAME_STACK`): memory for PPO.
         progress_bar, tensorboard, verbose: output.
         torch_threads: torch CPU threads (1: the env is the bottleneck and cores are shared).
         vec_env: ``"native"`` (default), ``"dummy"`` or ``"subproc"`` for the training envs
@@ -446,6 +638,11 @@ class TrainConfig:
         for name in ("eval_freq", "eval_episodes", "checkpoint_freq", "torch_threads", "keep_checkpoints"):
             _check_count(name, getattr(self, name))
         _check_count("frame_stack", self.frame_stack)
+        if self.frame_stack > MAX_FRAME_STACK:
+            raise ValueError(
+                f"frame_stack must be at most {MAX_FRAME_STACK} control steps, got {self.frame_stack} (its "
+                f"memory grows as n_steps x n_envs x frame_stack x obs_dim; longer memory: recurrentppo)"
+            )
         if self.frame_stack > 1 and algo == "recurrentppo":
             raise ValueError("frame_stack and recurrentppo exclude each other (the LSTM is the memory)")
         if self.frame_stack > 1 and algo == "sac":
@@ -492,6 +689,78 @@ def _comparable(cfg: dict) -> dict:
     return {k: cfg.get(k) for k in keep}
 
 
+def _rollout_size(algo: str, kwargs: dict[str, Any], n_envs: int) -> int | None:
+    """Env steps per rollout (``n_steps * n_envs``) of an on-policy algorithm, None for SAC."""
+    import inspect
+
+    from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
+
+    cls = algo_class(algo)
+    if not issubclass(cls, OnPolicyAlgorithm):
+        return None
+    n_steps = kwargs.get("n_steps", inspect.signature(cls.__init__).parameters["n_steps"].default)
+    _check_count("n_steps", n_steps)
+    return int(n_steps) * n_envs
+
+
+def _run_plan(c: TrainConfig) -> tuple[dict, dict, dict, int, int, int]:
+    """``(hyperparameters, zoo keys, algorithm kwargs, requested total, total, n_envs)`` of run ``c``,
+    checked (ValueError): the total is rounded up to whole rollouts for PPO / RecurrentPPO (SB3 collects
+    whole rollouts; the run then ends at exactly its total, also when resumed)."""
+    import inspect
+
+    hp = load_hyperparams(c.algo, c.env_id, c.hyperparams)
+    zoo, kwargs = _split_hyperparams(hp)
+    requested = zoo.get("n_timesteps", 100_000) if c.timesteps is None else c.timesteps
+    n_envs = zoo.get("n_envs", 1) if c.n_envs is None else c.n_envs
+    for name, v in (("timesteps (n_timesteps)", requested), ("n_envs", n_envs)):
+        if isinstance(v, float) and v.is_integer():
+            v = int(v)  # YAML's 3e5 is a float
+        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+            raise ValueError(f"{name} must be a positive integer, got {v!r}")
+    requested, n_envs = int(requested), int(n_envs)
+    if not 1 <= n_envs <= seeds_mod.MAX_TRAIN_ENVS:
+        raise ValueError(f"n_envs must lie in [1, {seeds_mod.MAX_TRAIN_ENVS}], got {n_envs}")
+    params = inspect.signature(algo_class(c.algo).__init__).parameters
+    unknown = sorted(k for k in kwargs if k not in params)
+    if unknown:
+        raise ValueError(
+            f"hyperparameters {unknown} are not keyword arguments of {algo_class(c.algo).__name__} "
+            f"(nor zoo keys {list(ZOO_KEYS)})"
+        )
+    own = sorted(k for k in kwargs if k in ("self", "env", "seed", "device", "verbose", "tensorboard_log"))
+    if own:
+        raise ValueError(f"hyperparameters {own} are set by the training command, not the YAML")
+    rollout = _rollout_size(c.algo, kwargs, n_envs)
+    total = requested if rollout is None else -(-requested // rollout) * rollout
+    return hp, zoo, kwargs, requested, total, n_envs
+
+
+def _check_same_settings(c: TrainConfig, n_envs: int) -> tuple[dict | None, dict | None]:
+    """``(last checkpoint, run.json)`` of run ``c``'s folder; ValueError if they hold a run with other
+    settings (algo, env, seed, env kwargs, frame stack, hyperparameter file, vec env, n_envs)."""
+    out = c.run_dir()
+    prior = latest_checkpoint(out)
+    try:
+        prev_run = json.loads((out / "run.json").read_text()) if (out / "run.json").is_file() else None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{out / 'run.json'} cannot be read ({exc}); use another --out") from None
+    if prior is not None:
+        # the checkpoint's own record (since issue 18), else the run.json of an earlier session
+        have_cfg = prior.get("config") or (
+            {**prev_run.get("config", {}), "n_envs": prev_run.get("n_envs")} if prev_run else None
+        )
+        if have_cfg is not None:
+            want = _comparable({**c.as_dict(), "n_envs": n_envs})
+            have = _comparable(have_cfg)
+            if want != have:
+                diff = sorted(k for k in want if want[k] != have[k])
+                raise ValueError(
+                    f"{out} holds a run with other settings ({', '.join(diff)}); use another --out"
+                )
+    return prior, prev_run
+
+
 def train(config: TrainConfig, command: str | None = None) -> Path:
     """Train one run, resuming from its last checkpoint if there is one; returns the run's directory.
 
@@ -503,24 +772,16 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
 
     c = config
     algo, env_id, seed, env_kwargs, task = c.algo, c.env_id, c.seed, c.env_kwargs, c.task
-    hp = load_hyperparams(algo, env_id, c.hyperparams)
-    zoo, kwargs = _split_hyperparams(hp)
-    total = int(c.timesteps if c.timesteps is not None else zoo.get("n_timesteps", 100_000))
-    n_envs = int(c.n_envs if c.n_envs is not None else zoo.get("n_envs", 1))
-    if total <= 0:
-        raise ValueError(f"timesteps must be positive, got {total}")
-    if not 1 <= n_envs <= seeds_mod.MAX_TRAIN_ENVS:
-        raise ValueError(f"n_envs must lie in [1, {seeds_mod.MAX_TRAIN_ENVS}], got {n_envs}")
+    hp, zoo, kwargs, requested, total, n_envs = _run_plan(c)
+    if total != requested:
+        print(
+            f"{c.run_dir()}: {algo} learns from whole rollouts of n_steps x n_envs = "
+            f"{_rollout_size(algo, kwargs, n_envs)} steps: --timesteps {requested} rounded up to {total}",
+            file=sys.stderr,
+        )
     out = c.run_dir()
     tensorboard, verbose = c.tensorboard, c.verbose
-    prior = latest_checkpoint(out)
-    prev_run = json.loads((out / "run.json").read_text()) if (out / "run.json").exists() else None
-    if prev_run is not None and prior is not None:
-        want = _comparable({**c.as_dict(), "n_envs": n_envs})
-        have = _comparable({**prev_run.get("config", {}), "n_envs": prev_run.get("n_envs")})
-        if want != have:
-            diff = sorted(k for k in want if want[k] != have[k])
-            raise ValueError(f"{out} holds a run with other settings ({', '.join(diff)}); use another --out")
+    prior, prev_run = _check_same_settings(c, n_envs)
     if (
         prev_run is not None
         and not prev_run.get("interrupted")
@@ -532,6 +793,14 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
         )
         return out
     session = int(prior["session"]) + 1 if prior else 0
+    previous: list[dict] = []
+    if prior is not None:
+        previous = prior.get("sessions")
+        if previous is None:  # a checkpoint of an earlier version: the records its run.json kept
+            previous = list(prev_run.get("sessions", [])) if prev_run else []
+        # a session still "running" in its last checkpoint ended without its final save: killed (or
+        # crashed); its record ends at that checkpoint, the steps after it were lost
+        previous = [{**r, "ended": "killed"} if r.get("ended") == "running" else r for r in previous]
     out.mkdir(parents=True, exist_ok=True)
     (out / "monitor").mkdir(exist_ok=True)
 
@@ -573,7 +842,17 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
             **kwargs,
         )
         done = 0
-    sess = _Session(c, out, session, prior, total)
+    sess = _Session(
+        c,
+        out,
+        session,
+        prior,
+        total,
+        env_seed=env_seed,
+        previous_sessions=previous,
+        on_policy=_rollout_size(algo, kwargs, n_envs) is not None,
+        run_config={**c.as_dict(), "n_envs": n_envs},
+    )
     remaining = total - done
     callbacks = [_session_callback(sess, total)]
     if c.progress_bar:
@@ -591,28 +870,30 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
             # Ctrl-C / SIGINT ends a long run cleanly: a checkpoint at this step (a rerun resumes here),
             # the model so far and run.json (with "interrupted": true)
             interrupted = True
-            print(f"interrupted at {model.num_timesteps} timesteps; saving", file=sys.stderr)
+            n = int(model.num_timesteps)
+            if sess.on_policy and n > sess.trained_steps:
+                # the unfinished rollout never reached the learner: count the steps learnt from, so that
+                # the resumed run collects whole rollouts up to exactly its total
+                model.num_timesteps = sess.trained_steps
+                print(
+                    f"interrupted at {n} timesteps; the unfinished rollout is dropped, saving at "
+                    f"{sess.trained_steps}",
+                    file=sys.stderr,
+                )
+            else:
+                print(f"interrupted at {n} timesteps; saving", file=sys.stderr)
     if not interrupted and remaining > 0:
         # model selection needs the final policy validated too (the callback's last validation ran
         # before the last policy update, even at the same step count)
         sess.validate(model)
-    sess.checkpoint(model)
+    sess.checkpoint(model, ended="interrupted" if interrupted else "finished")
     model.save(str(out / "model.zip"))
     if norm:
         model.get_vec_normalize_env().save(str(out / "vecnormalize.pkl"))
     wall = sess.wall()
     steps = int(model.num_timesteps)
     val_wall = sess.validation_wall()
-    sessions = list(prev_run.get("sessions", [])) if (prev_run and prior) else []
-    sessions.append(
-        {
-            "session": session,
-            "env_seed": env_seed,
-            "start_timesteps": done,
-            "end_timesteps": steps,
-            "wall_time_s": round(time.perf_counter() - sess.t0, 1),
-        }
-    )
+    sessions = sess.sessions(steps, "interrupted" if interrupted else "finished")
     info = {
         "algo": algo,
         "env_id": env_id,
@@ -622,6 +903,7 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
         "frame_stack": c.frame_stack,
         "timesteps": steps,
         "total_timesteps": total,
+        "requested_timesteps": requested,
         "wall_time_s": round(wall, 1),
         "validation_wall_time_s": round(val_wall, 1),
         # throughput of the whole run (all sessions): env steps per second of wall time, and without
@@ -754,6 +1036,80 @@ def plot_learning_curve(run_dir: str | Path, path: str | Path, title: str = "") 
     return Path(path)
 
 
+def _check_scheduler(address: str, timeout: float = SCHEDULER_CONNECT_TIMEOUT_S) -> None:
+    """ValueError (one line) unless something accepts a TCP connection at the Dask scheduler
+    ``address`` (``tcp://host:port``, ``tls://host:port`` or ``host:port``) within ``timeout`` s.
+
+    Dask's client would retry for 30 s (``distributed.comm.timeouts.connect``) and then raise with a
+    traceback; other schemes (``inproc://``, ``ucx://``, ``ws://``) are left to Dask."""
+    import socket
+    from urllib.parse import urlsplit
+
+    scheme, sep, rest = address.partition("://")
+    if not sep:
+        scheme, rest = "tcp", address
+    if scheme not in ("tcp", "tls"):
+        return
+    try:
+        u = urlsplit("//" + rest)
+        host, port = u.hostname, u.port
+    except ValueError as exc:
+        raise ValueError(f"--scheduler {address!r}: {exc}") from None
+    if not host or port is None:
+        raise ValueError(f"--scheduler {address!r}: expected tcp://host:port")
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        why = exc.strerror or str(exc) or type(exc).__name__
+        raise ValueError(
+            f"--scheduler {address}: no Dask scheduler answers there within {timeout:g} s ({why})"
+        ) from None
+
+
+def _check_env_kwargs(c: TrainConfig) -> None:
+    """ValueError (one line) unless ``c.env_kwargs`` build the task the way the run will: its training
+    envs (``gymnasium.make_vec`` for the native vector env) and the validation env (``gymnasium.make``)."""
+    import gfb_env.envs  # noqa: F401  (registers the ids)
+
+    try:
+        envs = [gym.make(c.env_id, **c.env_kwargs)]
+        if c.vec_env == "native":
+            envs.append(
+                gym.make_vec(c.env_id, num_envs=1, vectorization_mode="vector_entry_point", **c.env_kwargs)
+            )
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"--env-kwargs {json.dumps(c.env_kwargs)}: {' '.join(str(exc).split())}") from None
+    for env in envs:
+        env.close()
+
+
+def _check_writable(folder: Path, option: str = "--out") -> None:
+    """Create ``folder`` and a scratch file in it (ValueError, one line, if either fails): what
+    ``check_output_dir``'s permission test cannot see (``/proc``, a full or read-only mount)."""
+    import tempfile
+
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        raise ValueError(f"{option} {folder}: cannot write there ({exc.strerror or exc})") from None
+
+
+def _check_runs(config: TrainConfig, run_seeds: list[int], scheduler: str | None = None) -> None:
+    """Refuse (ValueError, one line) what would make a run of the sweep fail after it started: the
+    hyperparameters, the env kwargs, a run folder holding a run with other settings, an unwritable output
+    folder (created here), a Dask scheduler that does not answer."""
+    *_, n_envs = _run_plan(config)
+    root = config.out if config.out is not None else Path("runs") / config.experiment_name
+    for r in run_seeds:
+        _check_same_settings(TrainConfig(**{**config.as_dict(), "seed": r, "out": root / f"seed{r}"}), n_envs)
+    _check_env_kwargs(config)
+    if scheduler is not None:
+        _check_scheduler(scheduler)
+    _check_writable(Path(root))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = OneLineParser(prog="python -m gfb_agents.train", description=__doc__.splitlines()[0])
     ap.add_argument("--algo", required=True, choices=ALGOS)
@@ -784,7 +1140,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--eval-episodes", type=int, default=20, help="validation seeds per validation")
     ap.add_argument("--checkpoint-freq", type=int, default=20_000, help="env steps between checkpoints")
     ap.add_argument("--keep-checkpoints", type=int, default=2, help="checkpoints kept on disk")
-    ap.add_argument("--frame-stack", type=int, default=1, help="stack the last k observations (memory)")
+    ap.add_argument(
+        "--frame-stack",
+        type=int,
+        default=1,
+        help=f"stack the last k observations (memory; PPO only, k <= {MAX_FRAME_STACK})",
+    )
     ap.add_argument("--no-progress-bar", action="store_true")
     ap.add_argument("--no-tensorboard", action="store_true")
     ap.add_argument("--verbose", type=int, default=0)
@@ -849,7 +1210,7 @@ def main(argv: list[str] | None = None) -> int:
             torch_threads=a.torch_threads,
             vec_env=a.vec_env,
         )
-        load_hyperparams(config.algo, config.env_id, config.hyperparams)  # a missing entry fails now
+        _check_runs(config, run_seeds, a.scheduler)  # everything a run would fail on, before any starts
         recs = train_seeds(
             config,
             run_seeds,

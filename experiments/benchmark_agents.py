@@ -28,7 +28,10 @@ score, the seeds and the command), ``benchmark_agents.md`` (the Markdown table),
 ``benchmark_agents_paths.png`` (each agent's first episode in the (Lambda, D_W) plane over the nominal
 map; the paths also in ``benchmark_agents_paths.json``).  ``--merge`` keeps the rows of other (task,
 agent) pairs of an existing table.  Learned policies that are expected but missing (no folder, or none
-in it) end the run at once with exit code 2; ``--no-learned`` runs without them.
+in it) end the run at once with exit code 2; ``--no-learned`` runs without them.  So do, with one line
+before any episode, an unknown task or agent (or one that plays none of the ``--tasks``), an empty
+``--tasks`` / ``--agents``, ``--env-kwargs`` for an unknown task or that its task refuses, an
+``--out`` that cannot be written and a ``--scheduler`` that does not answer.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ import math
 import os
 import shlex
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -596,6 +600,52 @@ def write_outputs(
 
 
 # ------------------------------------------------------------------------------------------- CLI
+#: seconds to wait for a Dask scheduler's TCP port before refusing ``--scheduler`` (Dask waits 30 s)
+SCHEDULER_CONNECT_TIMEOUT_S = 5.0
+
+
+def _check_scheduler(address: str, timeout: float = SCHEDULER_CONNECT_TIMEOUT_S) -> None:
+    """ValueError (one line) unless something accepts a TCP connection at the Dask scheduler
+    ``address`` (``tcp://host:port``, ``tls://host:port`` or ``host:port``) within ``timeout`` s.
+
+    Dask's client would retry for 30 s (``distributed.comm.timeouts.connect``) and then raise with a
+    traceback; other schemes (``inproc://``, ``ucx://``, ``ws://``) are left to Dask.  (The same check as
+    ``python -m gfb_agents.train``'s; its owner would be ``gfb_env.sweeps``.)"""
+    import socket
+    from urllib.parse import urlsplit
+
+    scheme, sep, rest = address.partition("://")
+    if not sep:
+        scheme, rest = "tcp", address
+    if scheme not in ("tcp", "tls"):
+        return
+    try:
+        u = urlsplit("//" + rest)
+        host, port = u.hostname, u.port
+    except ValueError as exc:
+        raise ValueError(f"--scheduler {address!r}: {exc}") from None
+    if not host or port is None:
+        raise ValueError(f"--scheduler {address!r}: expected tcp://host:port")
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        why = exc.strerror or str(exc) or type(exc).__name__
+        raise ValueError(
+            f"--scheduler {address}: no Dask scheduler answers there within {timeout:g} s ({why})"
+        ) from None
+
+
+def _names(ap, option: str, text: str) -> list[str]:
+    """The comma-separated names of ``option``; an empty list or an empty name is a usage error (an
+    empty ``--agents`` / ``--tasks`` used to mean "all")."""
+    names = [x.strip() for x in text.split(",")]
+    if not any(names):
+        ap.error(f"{option} names nothing (got {text!r}); leave it out for all")
+    if not all(names):
+        ap.error(f"{option} has an empty name in {text!r}")
+    return list(dict.fromkeys(names))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = OneLineParser(prog="python -m gfb_experiments.benchmark_agents", description=__doc__.splitlines()[0])
     ap.add_argument("--split", default="test", choices=sorted(SPLITS), help="seed split (gfb_agents.seeds)")
@@ -636,7 +686,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--env-kwargs",
         default=None,
-        help='JSON {task id: {gymnasium.make kwargs}}, e.g. {"gfb_env/RunUp-v0": {}}',
+        help='JSON {task id: {gymnasium.make kwargs}}, e.g. {"gfb_env/RunUp-v1": {}}',
     )
     ap.add_argument(
         "--merge",
@@ -669,12 +719,25 @@ def main(argv: list[str] | None = None) -> int:
         check_output_dir(a.out, "--out")
     except ValueError as exc:
         ap.error(str(exc))
-    tasks = a.tasks.split(",") if a.tasks else list(TASKS)
+    tasks = _names(ap, "--tasks", a.tasks) if a.tasks is not None else list(TASKS)
     for t in tasks:
-        if t not in gym.registry:
-            ap.error(f"unknown task {t!r}; known: {', '.join(TASKS)}")
+        if t not in TASKS:  # a registered id that is not a task (CartPole-v1) has no ladder
+            ap.error(f"--tasks: unknown task {t!r}; known: {', '.join(TASKS)}")
+    for t, kw in env_kwargs.items():
+        # a known task outside --tasks is allowed (one JSON for several runs, --merge); a typo is not
+        if t not in TASKS:
+            ap.error(f"--env-kwargs: unknown task {t!r}; known: {', '.join(TASKS)}")
+        try:  # the env each chunk builds: bad keywords fail now, not in the first worker
+            gym.make(t, **kw).close()
+        except (TypeError, ValueError) as exc:
+            ap.error(f"--env-kwargs of {t}: {' '.join(str(exc).split())}")
     if a.no_learned and a.policies:
         ap.error("--no-learned and --policies exclude each other")
+    if a.scheduler is not None:
+        try:
+            _check_scheduler(a.scheduler)
+        except ValueError as exc:
+            ap.error(str(exc))
     with ladder_mod.scoped():
         return _run(ap, a, tasks, episodes, chunk, env_kwargs, argv)
 
@@ -706,8 +769,31 @@ def _run(ap, a, tasks, episodes, chunk, env_kwargs, argv) -> int:
             ladder_mod.register_learned(d)
         except (FileNotFoundError, ValueError) as exc:
             ap.error(f"--learned {d}: {exc}")
+    agents = None
+    if a.agents is not None:
+        agents = set(_names(ap, "--agents", a.agents))
+        known = sorted({e.name for t in tasks for e in ladder_for(t)})
+        unknown = sorted(agents - set(ladder_mod.registered()))
+        if unknown:
+            ap.error(
+                f"--agents: unknown agent {', '.join(map(repr, unknown))}; "
+                f"agents of the tasks: {', '.join(known)}"
+            )
+        idle = sorted(agents - set(known))
+        if idle:
+            ap.error(
+                f"--agents: {', '.join(map(repr, idle))} plays none of the tasks {', '.join(tasks)}; "
+                f"their agents: {', '.join(known)}"
+            )
+    out = Path(a.out)
+    try:  # what check_output_dir's permission test cannot see (/proc, a full or read-only mount)
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        ap.error(f"--out {a.out}: cannot write there ({exc.strerror or exc})")
     t0 = time.perf_counter()
-    chunks = plan(tasks, a.split, episodes, chunk, set(a.agents.split(",")) if a.agents else None, env_kwargs)
+    chunks = plan(tasks, a.split, episodes, chunk, agents, env_kwargs)
     for t in tasks:
         if naive_for(t) is None or oracle_for(t) is None:
             print(
@@ -719,8 +805,6 @@ def _run(ap, a, tasks, episodes, chunk, env_kwargs, argv) -> int:
             f"note: {episodes} test episodes per (task, agent) is below the table's {MIN_TEST_EPISODES}",
             file=sys.stderr,
         )
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
     results = run_chunks(chunks, out, a.n_jobs, a.scheduler, fresh=a.fresh)
     rows, per_task, paths = reduce_results(chunks, results, reps=a.reps)
     if a.merge:

@@ -182,8 +182,8 @@ def test_a_run_stopped_after_a_checkpoint_resumes_to_the_same_total(tmp_path, mo
     out = _train_quick(tmp_path, "ppo", "r", timesteps=256, seed=0, checkpoint_freq=128, eval_freq=128)
     meta = json.loads((out / "run.json").read_text())
     assert meta["timesteps"] == 256 and PPO.load(str(out / "model.zip")).num_timesteps == 256
-    assert [x["start_timesteps"] for x in meta["sessions"]] == [128]
-    assert meta["sessions"][0]["env_seed"] == seeds.train_env_seed(0, 0, 1)  # a new session's seeds
+    assert [x["start_timesteps"] for x in meta["sessions"]] == [0, 128]  # the killed session is kept
+    assert meta["sessions"][1]["env_seed"] == seeds.train_env_seed(0, 0, 1)  # a new session's seeds
     assert meta["wall_time_s"] > 0
     # the checkpoint's validation history was kept: one validation at 128 before the crash, then 256
     # in the callback and 256 after the last update

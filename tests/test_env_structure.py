@@ -179,7 +179,7 @@ def test_step_survives_numerical_failures_only(monkeypatch):
     def fail(*a, **k):
         raise IntegrationError("step size fell below min_step")
 
-    monkeypatch.setattr(env._integ, "advance", fail)
+    monkeypatch.setattr(env._integ, "prepare", fail)
     obs, r, term, trunc, info = env.step(np.zeros(2, dtype=np.float32))
     assert term and info["termination_reason"] is TerminationReason.SOLVER_FAILURE
     assert info["termination_reason"] == "solver_failure"
@@ -190,7 +190,7 @@ def test_step_survives_numerical_failures_only(monkeypatch):
     def bug(*a, **k):
         raise TypeError("a programming error")
 
-    monkeypatch.setattr(env._integ, "advance", bug)
+    monkeypatch.setattr(env._integ, "prepare", bug)
     with pytest.raises(TypeError, match="programming error"):
         env.step(np.zeros(2, dtype=np.float32))
 
@@ -236,14 +236,13 @@ def test_a_step_that_records_no_sample_does_not_crash_the_sensors(env_id, monkey
     probes then read the current position (no crash, finite observation)."""
     env = gym.make(env_id, **FAST).unwrapped
     env.reset(seed=0)
-    advance = env._integ.advance
+    finish = env.finish_step
 
-    def no_samples(*a, **k):
-        res = advance(*a, **k)
+    def no_samples(plan, res):
         tr = res.trajectory
         empty = type(tr)(**{f: getattr(tr, f)[:0] for f in tr.__dataclass_fields__})
-        return dataclasses.replace(res, trajectory=empty)
+        return finish(plan, dataclasses.replace(res, trajectory=empty))
 
-    monkeypatch.setattr(env._integ, "advance", no_samples)
+    monkeypatch.setattr(env, "finish_step", no_samples)
     obs, r, term, trunc, info = env.step(np.zeros(2, dtype=np.float32))
     assert np.all(np.isfinite(obs)) and math.isfinite(r)

@@ -231,3 +231,72 @@ def test_whirl_amplitude_ignores_the_drift():
     assert _whirl_amplitude(t, 0.1 + 1e-3 * t, 0.5 - 2e-3 * t) < 1e-12
     # a circular whirl of radius 0.2 over 2.9 periods: the trend fit absorbs a little (+17 % here)
     assert 0.18 < _whirl_amplitude(t, 0.2 * np.sin(0.3 * t), 0.2 * np.cos(0.3 * t)) < 0.25
+
+
+# ---- defect 10 (issue 18): an action of another shape or a complex one is refused, not reshaped -------
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_step_refuses_a_wrong_shape_or_a_non_real_action(env_id):
+    env = _make(env_id)
+    env.reset(seed=0)
+    for bad in (np.zeros((1, 2)), np.zeros((2, 1)), np.zeros(3), np.float32(0.0), [[0.0, 0.0]]):
+        with pytest.raises(ValueError, match=r"action must have shape \(2,\), got"):
+            env.step(bad)
+    for bad in (np.array([0.5 + 1j, 0.0]), [0.5j, 0.0], np.array(["0.1", "0.2"]), [None, 0.0]):
+        with pytest.raises(ValueError, match="action must be real numbers"):
+            env.step(bad)
+    # none of the refusals moved the episode; plain lists, ints and bools are real numbers
+    for ok in ([0.0, 0.0], np.array([0, 1]), np.array([True, False])):
+        _, _, term, trunc, info = env.step(ok)
+        if term or trunc:
+            break
+    assert info["step"] >= 1
+
+
+# ---- the step as a public protocol (issue 18): plan_step, the plant, finish_step -----------------------
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_plan_and_finish_are_the_step_bit_for_bit(env_id):
+    from gfb_env.envs.base import StepPlan, advance_plans
+    from gfb_env.integrator import BatchAdvance
+
+    kw = {**FAST, **_disturbed(env_id)}
+    one, two = gym.make(env_id, **kw).unwrapped, gym.make(env_id, **kw).unwrapped
+    o1, _ = one.reset(seed=7)
+    o2, _ = two.reset(seed=7)
+    assert np.array_equal(o1, o2)
+    rng = np.random.default_rng(0)
+    batch = BatchAdvance(num_threads=1)
+    for _ in range(3):
+        a = rng.uniform(-1.2, 1.2, 2).astype(np.float32)
+        r1 = one.step(a)
+        plan = two.plan_step(a)
+        assert isinstance(plan, StepPlan) and plan.call is not None and plan.failure is None
+        assert plan.action_sanitised == bool(np.any(np.abs(a) > 1))
+        r2 = two.finish_step(plan, advance_plans(batch, [plan])[0])
+        assert np.array_equal(r1[0], r2[0]) and r1[1:4] == r2[1:4]
+        assert repr(sorted(r1[4].items())) == repr(sorted(r2[4].items()))
+        if r1[2]:
+            break
+
+
+def test_a_plan_is_finished_once_by_its_own_env():
+    from gfb_env.envs.base import advance_plans
+    from gfb_env.integrator import BatchAdvance
+
+    env, other = RunUpEnv(**FAST), RunUpEnv(**FAST)
+    env.reset(seed=0)
+    other.reset(seed=0)
+    plan = env.plan_step(np.zeros(2))
+    with pytest.raises(RuntimeError, match="planned and not finished"):
+        env.plan_step(np.zeros(2))
+    with pytest.raises(RuntimeError, match="planned and not finished"):
+        env.get_state()
+    with pytest.raises(ValueError, match="pending plan"):
+        other.finish_step(plan, None)
+    result = advance_plans(BatchAdvance(), [plan])[0]
+    env.finish_step(plan, result)
+    with pytest.raises(ValueError, match="pending plan"):
+        env.finish_step(plan, result)
+    env.step(np.zeros(2))  # the env steps on
+    env.plan_step(np.zeros(2))
+    env.reset(seed=1)  # a reset drops a pending plan
+    env.step(np.zeros(2))

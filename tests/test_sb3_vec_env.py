@@ -104,3 +104,18 @@ def test_train_with_the_native_vector_env(tmp_path):
     assert len(rows) == meta["timesteps"] // 8 and all(int(r[1]) == 8 for r in rows)
     with pytest.raises(ValueError, match="vec_env"):
         TrainConfig("ppo", env_id, vec_env="threads")
+
+
+def test_adapter_refuses_a_batch_that_is_not_n_by_2():
+    """Defect 11 (issue 18): a (2N,), (2, N) or (1, 2N) batch was reshaped to (N, 2), mixing the envs'
+    actions (a transposed batch gave env 0 the speed actions of envs 0 and 1)."""
+    n = 3
+    adapter = GFBSB3VecEnv(gfb_env.envs.GFBVectorEnv(n, env_class=gfb_env.envs.RunUpEnv, **FAST))
+    adapter.reset()
+    for bad in (np.zeros(2 * n), np.zeros((2, n)), np.zeros((1, 2 * n)), np.zeros((n, 2, 1))):
+        adapter.step_async(bad)
+        with pytest.raises(ValueError, match=rf"actions must have shape \({n}, 2\)"):
+            adapter.step_wait()
+    adapter.step_async(np.zeros((n, 2), np.float32))
+    obs, rewards, dones, infos = adapter.step_wait()
+    assert obs.shape == (n, adapter.observation_space.shape[0]) and [i["step"] for i in infos] == [1] * n

@@ -269,3 +269,37 @@ def test_the_thread_count_of_the_native_env():
     for bad in (0, top + 1, 2.0):
         with pytest.raises(ValueError, match="num_threads"):
             gym.make_vec("gfb_env/RunUp-v0", num_envs=1, num_threads=bad)
+
+
+# ---- defect 12 (issue 18): the exception types of Gymnasium's SyncVectorEnv ---------------------------
+def _raised(f) -> BaseException:
+    try:
+        f()
+    except Exception as exc:  # noqa: BLE001 - the type is what is compared
+        return exc
+    raise AssertionError("no exception")
+
+
+def test_refusals_raise_what_sync_vector_env_raises():
+    native, sync = _pair("gfb_env/RunUp-v1", n=2)
+    native.reset(seed=0)
+    sync.reset(seed=0)
+    bad_calls = [
+        ("reset", {"options": {"reset_mask": [True, False]}}),  # not an array: TypeError
+        ("reset", {"options": {"reset_mask": np.array([1, 0])}}),  # not bool: TypeError
+        ("reset", {"options": {"reset_mask": np.array([True])}}),  # shape: ValueError
+        ("reset", {"options": {"reset_mask": np.zeros(2, bool)}}),  # no True: ValueError
+        ("reset", {"seed": 1.5}),  # TypeError (Gymnasium: "object of type 'float' has no len()")
+        ("reset", {"seed": [1, 2, 3]}),  # length: ValueError
+        ("step", {"actions": 0.5}),  # a scalar: TypeError
+        ("step", {"actions": np.zeros((3, 2), np.float32)}),  # envs: ValueError
+        ("step", {"actions": np.zeros((2, 3), np.float32)}),  # an env's action: ValueError
+    ]
+    for name, kw in bad_calls:
+        mine = _raised(lambda n=name, k=kw: getattr(native, n)(**k))
+        ref = _raised(lambda n=name, k=kw: getattr(sync, n)(**k))
+        assert type(mine) is type(ref), (name, kw, mine, ref)
+    with pytest.raises(TypeError, match="seed must be None, an int or a list"):
+        native.reset(seed=1.5)
+    with pytest.raises(ValueError, match="actions must be real numbers"):
+        native.step(np.full((2, 2), 0.5 + 1j))

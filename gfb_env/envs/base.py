@@ -33,7 +33,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, SupportsFloat
 
@@ -58,12 +58,28 @@ from gfb_env.envs.units import (
     ObservationLayout,
 )
 from gfb_env.forcing import HalfSineShock
-from gfb_env.integrator import AdvanceResult, IntegrationError, TrapezoidalIntegrator
+from gfb_env.integrator import (
+    DEFAULT_MAX_STEPS,
+    AdvanceResult,
+    BatchAdvance,
+    IntegrationError,
+    PreparedCall,
+    TrapezoidalIntegrator,
+)
 from gfb_env.machine import FoilDampingActuator, Motor, PressureTaps, ProximityProbes
 from gfb_env.model import GFBModel, Grid, Structure
 from gfb_env.params import BearingParameters
 
-__all__ = ["GFBEnv", "EpisodeSetup", "StepOutcome", "DEFAULT_GRID", "viscoelastic_model"]
+__all__ = [
+    "GFBEnv",
+    "StepPlan",
+    "PlantResult",
+    "advance_plans",
+    "EpisodeSetup",
+    "StepOutcome",
+    "DEFAULT_GRID",
+    "viscoelastic_model",
+]
 
 #: The numerical failures a control step survives (reported as ``"solver_failure"``); anything else is
 #: a programming error and propagates.
@@ -78,6 +94,52 @@ class PlantTrace:
     eta_range: tuple[float, float]
     orbit: tuple[np.ndarray, np.ndarray]
     integrator_steps: int
+
+
+#: What the plant phase of a step gives :meth:`GFBEnv.finish_step`: the integrator's result, or the
+#: numerical failure (:data:`NUMERICAL_FAILURES`) it raised.
+PlantResult = AdvanceResult | Exception
+
+
+@dataclass(frozen=True)
+class StepPlan:
+    """The first phase of one control step (:meth:`GFBEnv.plan_step`): what the env commanded and the
+    plant's prepared call.
+
+    Attributes:
+        action: the sanitised action (float64, ``(2,)``); action_sanitised: whether it was mended.
+        disturbance: a velocity kick was applied at the step's start.
+        bearing_number_start: Lambda at the step's start.
+        bearing_number, foil_damping: Lambda and the actual D_W commanded for the step's end.
+        integrator: the env's integrator, which the plant advances.
+        call: its prepared compiled call (:meth:`~gfb_env.integrator.TrapezoidalIntegrator.prepare`);
+            None when preparing it raised a numerical failure, then ``failure``.
+    """
+
+    action: np.ndarray
+    action_sanitised: bool
+    disturbance: bool
+    bearing_number_start: float
+    bearing_number: float
+    foil_damping: float
+    integrator: TrapezoidalIntegrator
+    call: PreparedCall | None
+    failure: Exception | None = None
+
+    def __post_init__(self) -> None:
+        if (self.call is None) == (self.failure is None):
+            raise ValueError("StepPlan: exactly one of call and failure must be given")
+
+
+def advance_plans(batch: BatchAdvance, plans: Sequence[StepPlan]) -> list[PlantResult]:
+    """The plant phase of a step for any number of plans (one env's, or a vector env's batch): every
+    prepared call in one compiled call of ``batch``
+    (:meth:`~gfb_env.integrator.BatchAdvance.run_prepared`, the envs' loops in parallel when it has
+    threads; each result is bit for bit the integrator's own ``advance``), a plan whose preparation
+    failed keeps its failure."""
+    ready = [p for p in plans if p.call is not None]
+    done = iter(batch.run_prepared([p.integrator for p in ready], [p.call for p in ready]))
+    return [next(done) if p.call is not None else p.failure for p in plans]  # type: ignore[misc]
 
 
 class _FromConfig:
@@ -133,6 +195,9 @@ class GFBEnv(gym.Env):
         low, high = self.observation_layout.bounds()
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self._integ: TrapezoidalIntegrator | None = None
+        #: the plant phase of :meth:`step` (one plan at a time: one thread)
+        self._plant = BatchAdvance(num_threads=1)
+        self._pending: StepPlan | None = None
         self._ep: Episode | None = None
         self._renderer: EpisodeRenderer | None = None
 
@@ -248,6 +313,7 @@ class GFBEnv(gym.Env):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
+        self._pending = None
         setup = self._setup_episode(self._check_options(options))
         if self._integ is not None and self._integ.model is setup.model:
             self._integ.reset(setup.state, setup.bearing_number, setup.foil_damping)
@@ -299,39 +365,82 @@ class GFBEnv(gym.Env):
                 raise ValueError(f"reset options: unknown key {key!r} (allowed: {allowed})")
         return options
 
+    # ------------------------------------------------------------------------------------------
+    # the step: a public two-phase protocol (plan, the plant, finish); the stage order lives here only
     def step(self, action: Any) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict]:
-        self._check_can_step()
-        a, sanitised = self._sanitise(action)
-        lam0, bearing_number, foil_damping, kick = self._prepare_plant(a)
-        res = self._run_integrator(bearing_number, foil_damping)
-        out, trace = self._plant_outcome(lam0, res)
-        self._judge(out, trace, a, sanitised, kick)
-        obs, info = self._emit()
-        return obs, self._ep.reward, self._ep.done, False, info
+        """One control step: :meth:`plan_step`, the plant (:func:`advance_plans`), :meth:`finish_step`.
 
-    # The stages of :meth:`step`, also called one at a time over a batch of envs by
-    # :class:`~gfb_env.envs.vector.GFBVectorEnv` (each env's random draws stay in the same order).
-    def _check_can_step(self) -> None:
+        ``action``: real numbers of shape ``(2,)`` (a list, tuple or array of any real dtype); any other
+        shape or a complex / non-numeric dtype raises ``ValueError``.  NaN and out-of-range entries are
+        mended (``info["action_sanitised"]``)."""
+        plan = self.plan_step(action)
+        return self.finish_step(plan, advance_plans(self._plant, (plan,))[0])
+
+    def plan_step(self, action: Any) -> StepPlan:
+        """The first phase of a step: check and sanitise ``action``, then *command* (motor, actuator),
+        the disturbance kick, the base shocks of the step, and prepare the plant's compiled call.  The
+        env's random draws happen here and in :meth:`finish_step`, in that order, so a batch of envs
+        stepped phase by phase (:class:`~gfb_env.envs.vector.GFBVectorEnv`) draws exactly as each env
+        stepped alone.  Until :meth:`finish_step` takes the plan no other plan can be made."""
         if self._integ is None or self._ep is None:
             raise RuntimeError("call reset() before step()")
         if self._ep.done:
             raise RuntimeError("the episode has ended; call reset()")
-
-    def _prepare_plant(self, a: np.ndarray) -> tuple[float, float, float, bool]:
-        """Command, kick and shocks of one step: Lambda at the start, Lambda and D_W commanded for the
-        end of the step, and whether a kick was applied (the integrator is then ready to advance)."""
+        if self._pending is not None:
+            raise RuntimeError("a step is planned and not finished: call finish_step(plan, result) first")
+        a, sanitised = self._sanitise(action)
         bearing_number, foil_damping = self._command(a)
         kick = self._maybe_kick()
-        lam0 = self._integ.bearing_number
+        integ = self._integ
+        lam0 = integ.bearing_number
         self._schedule_shocks()
-        return lam0, bearing_number, foil_damping, kick
+        call: PreparedCall | None = None
+        failure: Exception | None = None
+        try:
+            call = integ.prepare(
+                integ.tau + self.control_interval, bearing_number, foil_damping, self.record_interval,
+                self._probe_idx, DEFAULT_MAX_STEPS,
+            )  # fmt: skip
+        except NUMERICAL_FAILURES as exc:
+            failure = exc
+        plan = StepPlan(
+            action=a,
+            action_sanitised=sanitised,
+            disturbance=kick,
+            bearing_number_start=lam0,
+            bearing_number=bearing_number,
+            foil_damping=foil_damping,
+            integrator=integ,
+            call=call,
+            failure=failure,
+        )
+        self._pending = plan
+        return plan
+
+    def finish_step(self, plan: StepPlan, result: PlantResult) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """The second phase of a step: *judge* (stability, success, termination and reward, from the
+        plant's ``result`` for ``plan``: its :class:`~gfb_env.integrator.AdvanceResult` or the numerical
+        failure it raised, as :func:`advance_plans` returns it) and *emit* (the observation from the
+        sensors, and the info).  Returns Gymnasium's ``(obs, reward, terminated, truncated, info)``;
+        ``truncated`` is always False (the time limit is the ``TimeLimit`` wrapper's)."""
+        if plan is not self._pending:
+            raise ValueError("finish_step: plan is not this env's pending plan (from its plan_step)")
+        self._pending = None
+        out, trace = self._plant_outcome(plan.bearing_number_start, result)
+        self._judge(out, trace, plan.action, plan.action_sanitised, plan.disturbance)
+        obs, info = self._emit()
+        return obs, self._ep.reward, self._ep.done, False, info
 
     # ---- command ------------------------------------------------------------------------------
     def _sanitise(self, action: Any) -> tuple[np.ndarray, bool]:
-        """nan -> 0, +-inf and out-of-range -> clipped to [-1, 1]; reports whether anything changed."""
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        """Check ``action`` (real numbers of shape ``(2,)``: no reshaping, so a (1, 2) or (2, 1) array,
+        a complex or non-numeric one raises ``ValueError``), then nan -> 0, +-inf and out-of-range ->
+        clipped to [-1, 1]; reports whether anything changed."""
+        a = np.asarray(action)
         if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,), got {np.shape(action)}")
+            raise ValueError(f"action must have shape (2,), got {a.shape}")
+        if a.dtype.kind not in _REAL_KINDS:
+            raise ValueError(f"action must be real numbers, got dtype {a.dtype} ({action!r})")
         # two scalars: plain Python is ~10x cheaper than nan_to_num + clip on a 2-vector, same values
         x0, x1 = float(a[0]), float(a[1])
         c0, c1 = _clip_action(x0), _clip_action(x1)
@@ -366,22 +475,6 @@ class GFBEnv(gym.Env):
         # a discontinuity: restart the step history (deterministic, like any reset)
         integ.reset(s, integ.bearing_number, integ.foil_damping, integ.tau, integ.rotation_angle)
         return True
-
-    def _run_integrator(self, bearing_number: float, foil_damping: float) -> AdvanceResult | Exception:
-        """The integrator over one control interval (the only compiled work of a step): its result, or
-        the numerical failure it raised (judged by :meth:`_plant_outcome`)."""
-        integ = self._integ
-        try:
-            return integ.advance(
-                integ.tau + self.control_interval,
-                bearing_number,
-                foil_damping,
-                record_interval=self.record_interval,
-                record_indices=self._probe_idx,
-                raise_on_failure=False,
-            )
-        except NUMERICAL_FAILURES as exc:
-            return exc
 
     def _plant_outcome(self, lam0: float, res: AdvanceResult | Exception) -> tuple[StepOutcome, PlantTrace]:
         """What the plant did in the step (``lam0``: Lambda at its start) from the integrator's result."""
@@ -454,24 +547,19 @@ class GFBEnv(gym.Env):
 
     # ---- emit ---------------------------------------------------------------------------------
     def _emit(self) -> tuple[np.ndarray, dict]:
-        raw, info = self._emit_raw()
-        return self._finish_observation(raw), info
-
-    def _emit_raw(self) -> tuple[np.ndarray, dict]:
-        """The unclipped float64 observation (:meth:`_raw_observation`) and the info."""
+        """The observation (from the sensors; NaN/inf -> 0, clipped, float32) and the info."""
         raw, info = self._raw_observation(), self._info()
         if self.render_mode == "human":
             self.render()
-        return raw, info
-
-    def _observation(self) -> np.ndarray:
-        return self._finish_observation(self._raw_observation())
+        return self._finish_observation(raw), info
 
     def _finish_observation(self, raw: np.ndarray) -> np.ndarray:
-        """NaN/inf -> 0, clipped to the observation space, float32: elementwise, so the vector env
-        finishes a whole batch ``(n_envs, size)`` in one call with the same bits."""
-        obs = np.nan_to_num(raw, nan=0.0, posinf=0.0, neginf=0.0)
-        return np.clip(obs, self.observation_space.low, self.observation_space.high).astype(np.float32)
+        """NaN/inf -> 0, clipped to the observation space, float32 (elementwise)."""
+        obs = np.array(raw, dtype=np.float64)
+        # what np.nan_to_num(nan=0, posinf=0, neginf=0) gives, in two ufunc calls (a third of its cost)
+        np.copyto(obs, 0.0, where=~np.isfinite(obs))
+        np.clip(obs, self.observation_space.low, self.observation_space.high, out=obs)
+        return obs.astype(np.float32)
 
     def _raw_observation(self) -> np.ndarray:
         ep, s = self._ep, self._integ.state
@@ -579,6 +667,8 @@ class GFBEnv(gym.Env):
         """Exact snapshot of the episode: integrator, episode state and the ``np_random`` state."""
         if self._integ is None or self._ep is None:
             raise RuntimeError("call reset() first")
+        if self._pending is not None:
+            raise RuntimeError("get_state: a step is planned and not finished (finish_step first)")
         return {
             "integrator": self._integ.get_state(),
             "episode": copy.deepcopy(self._ep),
@@ -596,6 +686,7 @@ class GFBEnv(gym.Env):
             self._probe_idx = ep.model.layout.midplane_probe_indices(self.n_pressure_probes)
         self._integ.set_state(copy.deepcopy(integ_state))
         self._ep = ep
+        self._pending = None
         self.np_random.bit_generator.state = copy.deepcopy(snapshot["np_random"])
 
     # ------------------------------------------------------------------------------------------
@@ -620,6 +711,11 @@ class GFBEnv(gym.Env):
 
 
 # ----------------------------------------------------------------------------------------------
+#: NumPy dtype kinds an action may have: bool, signed and unsigned integers, floats (not complex, not
+#: strings or objects: the imaginary part would be dropped silently, a string is no number)
+_REAL_KINDS = "biuf"
+
+
 def _clip_action(x: float) -> float:
     """NaN -> 0, +-inf and out-of-range -> clipped to [-1, 1] (a NaN compares unequal, so the caller's
     ``clean != raw`` reports it)."""

@@ -13,13 +13,18 @@ command into the actual D_W at the step's end: :mod:`gfb_env.machine`), *plant* 
 then the integrator over the control interval), *judge* (stability, hold, success, termination and the
 task's reward terms, from the true plant) and *emit* (the observation, built from the sensors:
 proximity probes and pressure taps, and info).  With the default (ideal) actuator and sensors the
-machine is exactly v0's.  Everything that changes within an episode is
+machine is ideal (the registered ids add the instrumented one).  Everything that changes within an episode is
 one :class:`~gfb_env.envs.episode.Episode`; the configuration is one frozen
 :class:`~gfb_env.envs.config.EnvConfig`.
 
-Subclasses define the task (:meth:`GFBEnv._setup_episode`, :meth:`GFBEnv._reward_terms` and optionally
-:meth:`GFBEnv._is_at_target` and :attr:`GFBEnv.reset_options`); see ``run_up.py``,
+Subclasses define the task: the episode (:meth:`GFBEnv._setup_episode`, :attr:`GFBEnv.reset_options`),
+the first guess and caching of the plant's best stable point, and the objective they hold
+(``self.objective``, a :class:`~gfb_env.envs.commanded.CommandedObjective`); see ``run_up.py``,
 ``run_up_randomized.py`` and ``whirl_recovery.py``, ``docs/envs.md`` and ``docs/extending.md``.
+
+The step is a public two-phase protocol (:meth:`GFBEnv.plan_step`, the plant :func:`advance_plans`,
+:meth:`GFBEnv.finish_step`): :meth:`GFBEnv.step` is the three for one env, the native vector env
+(:mod:`gfb_env.envs.vector`) the same three over a batch with one compiled plant call.
 
 Scaling of the observations: the sensors measure in physical units and the observation divides them
 by the scales of the *nominal* bearing of the task (clearance C_nom, time scale T_nom, ``speed_scale_rpm``).
@@ -41,6 +46,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from gfb_env.envs.certify import BestStablePoint, best_stable_operating_point
+from gfb_env.envs.commanded import CertifiedPlant, CommandedEpisode, CommandedObjective, SpeedCommand
 from gfb_env.envs.config import DEFAULT_GRID, EnvConfig
 from gfb_env.envs.episode import Episode, EpisodeSetup, History, StepOutcome, TerminationReason
 from gfb_env.envs.render import EpisodeRenderer
@@ -155,14 +162,23 @@ class _FromConfig:
 class GFBEnv(gym.Env):
     """Common machinery of the GFB tasks (actions, observations, integration, snapshots, rendering).
 
-    Keyword arguments are those of :class:`~gfb_env.envs.config.EnvConfig` (``grid``,
-    ``control_interval``, ``max_acceleration_rpm_per_s``, ``speed_range_rpm``, ``damping_range``,
-    ``n_pressure_probes``, ``observation_noise``, ``touchdown_film_thickness``, ``stable_amplitude``,
-    ``hold_steps``, ``disturbance_probability``, ``disturbance_magnitude``, ``speed_scale_rpm``,
-    ``nominal_bearing``, ``integrator_options``, and the machine's components ``motor``,
-    ``damping_actuator``, ``proximity_probes``, ``pressure_taps``: objects of :mod:`gfb_env.machine` or
-    dicts of their fields), plus ``render_mode`` (``None``, ``"rgb_array"`` or
-    ``"human"``).  An unknown keyword or a bad value raises ``ValueError`` naming it.
+    A task subclass decides the episode (:meth:`_setup_episode`: the plant, its start, the speed
+    command) and holds its objective (``objective``, a
+    :class:`~gfb_env.envs.commanded.CommandedObjective`: observation entries, judge, reward, horizon,
+    info); everything else is here.
+
+    Args:
+        objective: the task's objective.
+        config: the validated configuration (:class:`~gfb_env.envs.config.EnvConfig`: ``grid``,
+            ``control_interval``, ``max_acceleration_rpm_per_s``, ``speed_range_rpm``, ``damping_range``,
+            ``n_pressure_probes``, ``observation_noise``, ``touchdown_film_thickness``,
+            ``stable_amplitude``, ``hold_steps``, ``disturbance_probability``, ``disturbance_magnitude``,
+            ``speed_scale_rpm``, ``nominal_bearing``, ``integrator_options``, and the machine's
+            components ``motor``, ``damping_actuator``, ``proximity_probes``, ``pressure_taps``,
+            ``shock_arrivals``, ``rotor_balance``: objects of :mod:`gfb_env.machine` or dicts of their
+            fields); the tasks build it from their keyword arguments (an unknown keyword or a bad value
+            raises ``ValueError`` naming it).
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
@@ -170,9 +186,14 @@ class GFBEnv(gym.Env):
     #: keys that ``reset(options=...)`` accepts (the task validates their values)
     reset_options: ClassVar[tuple[str, ...]] = ()
 
-    def __init__(self, render_mode: str | None = None, **kwargs: Any):
+    def __init__(self, objective: CommandedObjective, config: EnvConfig, render_mode: str | None = None):
         super().__init__()
-        self.config = EnvConfig.from_kwargs(kwargs)
+        if not isinstance(config, EnvConfig):
+            raise ValueError(f"config must be an EnvConfig, got {config!r}")
+        if not isinstance(objective, CommandedObjective):
+            raise ValueError(f"objective must be a CommandedObjective, got {objective!r}")
+        self.config = config
+        self.objective = objective
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"
@@ -180,14 +201,18 @@ class GFBEnv(gym.Env):
         self.render_mode = render_mode
         cfg = self.config
         self.actions = ActionMap(cfg.damping_range, cfg.max_acceleration_rpm_per_s)
+        # the task's own entries (if any), then the objective's (they end the observation)
         extra = self._extra_observation_bounds()
+        own_lo, own_hi = objective.observation_bounds()
+        extra_lo = (*(float(x) for x in extra[0]), *own_lo) if extra is not None else tuple(own_lo)
+        extra_hi = (*(float(x) for x in extra[1]), *own_hi) if extra is not None else tuple(own_hi)
         self.observation_layout = ObservationLayout(
             n_pressure_probes=cfg.n_pressure_probes,
             speed_scale_rpm=cfg.speed_scale_rpm,
             max_speed_rpm=cfg.speed_range_rpm[1],
-            extra_low=tuple(float(x) for x in extra[0]) if extra is not None else (),
-            extra_high=tuple(float(x) for x in extra[1]) if extra is not None else (),
-            extra_names=self._extra_observation_names(),
+            extra_low=tuple(float(x) for x in extra_lo),
+            extra_high=tuple(float(x) for x in extra_hi),
+            extra_names=(*self._extra_observation_names(), *objective.observation_names),
         )
         # record the trajectory ~120 times per control step (>= 30 samples per whirl period)
         self.record_interval = cfg.control_interval / 120.0
@@ -225,31 +250,28 @@ class GFBEnv(gym.Env):
     # ------------------------------------------------------------------------------------------
     # task hooks
     def _setup_episode(self, options: Mapping[str, Any]) -> EpisodeSetup:  # pragma: no cover - abstract
-        """The plant, its start and the task's record for a new episode (``options`` already checked
-        against :attr:`reset_options`; the task validates the values)."""
+        """The plant, its start, the speed command and the task's record for a new episode
+        (``options`` already checked against :attr:`reset_options`; the task validates the values)."""
         raise NotImplementedError
 
-    def _reward_terms(self, out: StepOutcome, success: bool) -> dict[str, float]:  # pragma: no cover
-        """The named terms of the reward of one control step (they sum to the reward)."""
+    def _best_bearing_number_guess(self) -> float:  # pragma: no cover - abstract
+        """A first guess of the episode's best stable bearing number (the start of the exact search)."""
         raise NotImplementedError
 
-    def _is_at_target(self, out: StepOutcome) -> bool:
-        """Whether the speed counts for a success (default: any speed)."""
-        return True
-
-    def _step_success(self, out: StepOutcome, stable: bool) -> bool:
-        """Whether this step completes a success (``stable``: no touchdown, no failure, small whirl).
-        Default (v0): ``hold_steps`` consecutive stable steps at the target."""
-        ep = self._ep
-        ep.hold = ep.hold + 1 if (stable and self._is_at_target(out)) else 0
-        return ep.hold >= self.hold_steps
-
-    def _horizon_reached(self) -> bool:
-        """Whether a fixed-horizon task ends after this step (default: no horizon; a TimeLimit truncates)."""
+    def _best_point_is_cached(self) -> bool:
+        """Whether the episode's plant has its optimum cached (fixed plants: after the first time)."""
         return False
 
+    def _unconstrained_best_point(self) -> tuple[float, float]:
+        """``(lambda_best, D_opt)`` of the episode's plant over every actual damping any gain of the
+        actuator can reach (:meth:`_damping_search_range`).  Tasks cache it where the plant is fixed."""
+        return best_stable_operating_point(
+            self.episode.model, self._damping_search_range(), self._best_bearing_number_guess()
+        )
+
     def _extra_observation_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """Bounds of task-specific observations appended after the probes (None: none)."""
+        """Bounds of task-specific observations appended after the probes, before the objective's
+        (None: none)."""
         return None
 
     def _extra_observation_names(self) -> tuple[str, ...]:
@@ -276,6 +298,44 @@ class GFBEnv(gym.Env):
     def bearing(self) -> BearingParameters:
         """Dimensional parameters of the current episode's bearing."""
         return self.episode.bearing
+
+    @property
+    def speed_command(self) -> SpeedCommand:
+        """The episode's speed command (observed: ``n_cmd``; here also ``Lambda_cmd``, ``Lambda_ref``)."""
+        return self.episode.command.command
+
+    @property
+    def damping_gain(self) -> float:
+        """The episode's hidden damping effectiveness ``g`` (actual D_W = g x commanded; for oracles)."""
+        return float(self.episode.actuator.gain)
+
+    def best_stable_operating_point(self) -> BestStablePoint:
+        """The exact best stable operating point of this episode's plant for the achievable actual
+        damping ``[g D_min, g D_max]`` (g: the episode's hidden damping effectiveness): ``lambda_best``,
+        the actual ``D_opt``, the command ``D_opt / g`` and the speed.  Cached for the episode (~0.3 s
+        for a drawn bearing, once per env for the nominal one).  For the oracle and the evaluation: it
+        reads the hidden plant."""
+        ep = self.episode
+        ce: CommandedEpisode = ep.command
+        if ce.best is not None:
+            return ce.best
+        g = ep.actuator.gain
+        dmin, dmax = self.damping_range
+        lo, hi = g * dmin, g * dmax
+        lam_u, d_u = self._unconstrained_best_point()
+        if lo <= d_u <= hi:
+            lam, d = lam_u, d_u
+        else:  # Lambda_c(D) is unimodal in log D: the best achievable damping is the nearer end
+            d = lo if d_u < lo else hi
+            lam, _ = best_stable_operating_point(ep.model, (d, d), lam_u)
+        ce.best = BestStablePoint(lam, d, d / g, ep.bearing.speed_rpm_at(lam))
+        return ce.best
+
+    def _damping_search_range(self) -> tuple[float, float]:
+        """The actual damping any gain of the actuator can reach."""
+        act, (dmin, dmax) = self.damping_actuator, self.damping_range
+        glo, ghi = act.gain_range if act.gain_range is not None else (act.gain, act.gain)
+        return glo * dmin, ghi * dmax
 
     def damping_from_action(self, a: float) -> float:
         """``D_W`` of the damping action ``a`` (:meth:`ActionMap.damping_from_action`)."""
@@ -519,13 +579,15 @@ class GFBEnv(gym.Env):
 
     # ---- judge --------------------------------------------------------------------------------
     def _judge(self, out: StepOutcome, trace: PlantTrace, a: np.ndarray, sanitised: bool, kick: bool) -> None:
-        """Stability, hold, success, termination and reward of the step, written into the episode."""
-        ep = self._ep
+        """Stability, the objective's judge (success), reward and termination of the step, written into
+        the episode."""
+        ep, objective = self._ep, self.objective
+        ce: CommandedEpisode = ep.command
         stable = (
             (not out.touchdown) and (not out.solver_failure) and out.whirl_amplitude <= self.stable_amplitude
         )
-        success = self._step_success(out, stable)
-        terms = self._reward_terms(out, success)
+        success = objective.judge(ce, out, stable, ep.step, self._certified_plant())
+        terms = objective.reward_terms(ce, out)
         ep.reward_terms = terms
         ep.reward = float(sum(terms.values()))
         ep.episode_return += ep.reward
@@ -542,8 +604,20 @@ class GFBEnv(gym.Env):
             ep.termination = TerminationReason.TOUCHDOWN
         elif success:
             ep.termination = TerminationReason.SUCCESS
-        elif self._horizon_reached():
+        elif objective.horizon_reached(ep.step):
             ep.termination = TerminationReason.HORIZON
+
+    def _certified_plant(self) -> CertifiedPlant:
+        """The actual plant as the objective's certificate reads it."""
+        ep = self._ep
+        g, (dmin, dmax) = ep.actuator.gain, self.damping_range
+        known = ep.command.best is not None or self._best_point_is_cached()
+        return CertifiedPlant(
+            ep.model,
+            self._integ.state,
+            (g * dmin, g * dmax),
+            self.best_stable_operating_point if known else None,
+        )
 
     # ---- emit ---------------------------------------------------------------------------------
     def _emit(self) -> tuple[np.ndarray, dict]:
@@ -578,10 +652,9 @@ class GFBEnv(gym.Env):
         obs[OBS_SPEED] = ep.bearing.speed_rpm_at(self._integ.bearing_number) / self.speed_scale_rpm
         # the actuator's position feedback: the damping it believes it sets (the gain is hidden)
         obs[OBS_DAMPING] = self.actions.action_from_damping(self._integ.foil_damping / ep.actuator.gain)
+        own = self.objective.observation(ep.command, ep.step, self.speed_scale_rpm)
         extra = self._extra_observation()
-        if extra is not None:
-            obs = np.concatenate([obs, extra])
-        return obs
+        return np.concatenate([obs, own] if extra is None else [obs, extra, own])
 
     def _add_sensor_errors(self, obs: np.ndarray, xi: float, eta: float) -> None:
         """Add what the probes and taps add to the truth (nothing, and no draw, for ideal sensors).
@@ -648,7 +721,9 @@ class GFBEnv(gym.Env):
             "whirl_amplitude": ep.whirl_amplitude,
             "whirl_amplitude_um": b.micrometres(ep.whirl_amplitude),
             "bearing_force_n": (b.newtons(float(force[0])), b.newtons(float(force[1]))),
-            "hold_steps": ep.hold,
+            # kept for the info's stability: the objective has no hold counter (its certificate's window
+            # is the config's hold_steps)
+            "hold_steps": 0,
             "action_applied": ep.last_action.copy(),
             "action_sanitised": ep.action_sanitised,
             "disturbance": ep.disturbance,
@@ -659,6 +734,9 @@ class GFBEnv(gym.Env):
         # the reward's terms, as Gymnasium's MuJoCo tasks report them (they sum to the reward)
         info.update({f"reward_{k}": v for k, v in ep.reward_terms.items()})
         info.update(ep.task_info)
+        info.update(
+            self.objective.info(ep.command, ep.step, lam, ep.termination is TerminationReason.SUCCESS)
+        )
         return info
 
     # ------------------------------------------------------------------------------------------

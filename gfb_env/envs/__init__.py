@@ -23,7 +23,8 @@ from __future__ import annotations
 from gymnasium.envs.registration import register, registry
 
 from gfb_env.envs._data import NOMINAL_BEARING
-from gfb_env.envs.base import DEFAULT_GRID, GFBEnv
+from gfb_env.envs.base import DEFAULT_GRID, GFBEnv, PlantResult, StepPlan, advance_plans
+from gfb_env.envs.commanded import CommandedObjective
 from gfb_env.envs.retired import RETIRED_IDS, RetiredEntryPoint, RetiredTaskError
 from gfb_env.envs.run_up import RunUpEnv
 from gfb_env.envs.run_up_randomized import RunUpRandomizedEnv
@@ -43,6 +44,10 @@ __all__ = [
     "RunUpRandomizedEnv",
     "WhirlRecoveryEnv",
     "GFBVectorEnv",
+    "StepPlan",
+    "PlantResult",
+    "advance_plans",
+    "CommandedObjective",
     "DEFAULT_GRID",
     "NOMINAL_BEARING",
     "ENV_IDS",

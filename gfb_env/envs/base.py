@@ -441,7 +441,9 @@ class GFBEnv(gym.Env):
         the disturbance kick, the base shocks of the step, and prepare the plant's compiled call.  The
         env's random draws happen here and in :meth:`finish_step`, in that order, so a batch of envs
         stepped phase by phase (:class:`~gfb_env.envs.vector.GFBVectorEnv`) draws exactly as each env
-        stepped alone.  Until :meth:`finish_step` takes the plan no other plan can be made."""
+        stepped alone.  Until :meth:`finish_step` takes the plan no other plan can be made (and no
+        snapshot taken); a plant that raised (a programming error: numerical failures are results)
+        leaves the plan pending until :meth:`reset` or :meth:`set_state`."""
         if self._integ is None or self._ep is None:
             raise RuntimeError("call reset() before step()")
         if self._ep.done:

@@ -76,10 +76,10 @@ KINDS = ("naive", "rule", "oracle", "learned")
 SPEED_COMMAND = "speed_command"
 
 try:  # the task lists have one owner
-    from gfb_env.envs import ENV_IDS, V0_IDS
+    from gfb_env.envs import ENV_IDS
 
-    V0_TASKS: tuple[str, ...] = tuple(V0_IDS)
-    V1_TASKS: tuple[str, ...] = tuple(t for t in ENV_IDS if t not in V0_IDS)
+    V0_TASKS: tuple[str, ...] = ()  # the v0 ids are retired (gfb_env.envs.retired, issue 18)
+    V1_TASKS: tuple[str, ...] = tuple(ENV_IDS)
 except ImportError:  # pragma: no cover - gfb_env is a dependency
     V0_TASKS, V1_TASKS = (), ()
 
@@ -314,27 +314,33 @@ def default_ladder() -> dict[str, AgentEntry]:
     ]
     # the v0 rules fly the v0 targets (they read no speed command): v0 only; the v1 tasks have their own
     # rules (gfb_agents.rules_v1)
-    for name, desc in _V0_RULES:
+    for name, desc in _V0_RULES if V0_TASKS else ():  # the v0 ids are retired (issue 18)
         out.append(
             AgentEntry(name, "rule", V0_TASKS, functools.partial(make_scripted, name), description=desc)
         )
-    out.append(
-        AgentEntry(
-            "identify_map", "rule", V0_TASKS, make_identify_map, description="fit the bearing, fly the table"
+    if V0_TASKS:
+        out.append(
+            AgentEntry(
+                "identify_map",
+                "rule",
+                V0_TASKS,
+                make_identify_map,
+                description="fit the bearing, fly the table",
+            )
         )
-    )
     # the v1 rules (gfb_agents.rules_v1): each on the tasks it was written for
     for name, tasks, desc in _V1_RULES:
         out.append(AgentEntry(name, "rule", tasks, functools.partial(make_v1_rule, name), description=desc))
-    out.append(
-        AgentEntry(
-            "oracle",
-            "oracle",
-            V0_TASKS,
-            make_schedule_oracle,
-            description="identify_map's schedule on the true draw",
+    if V0_TASKS:
+        out.append(
+            AgentEntry(
+                "oracle",
+                "oracle",
+                V0_TASKS,
+                make_schedule_oracle,
+                description="identify_map's schedule on the true draw",
+            )
         )
-    )
     out.append(
         AgentEntry(
             "oracle_v1",

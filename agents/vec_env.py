@@ -53,7 +53,7 @@ class GFBSB3VecEnv(VecEnv):
         v, n = self.venv, self.num_envs
         if v._needs_reset:
             raise RuntimeError("call reset() before step()")
-        a = np.asarray(self._actions, dtype=np.float64).reshape(n, -1)
+        a = v.check_actions(self._actions)  # (N, 2) exactly: a reshaped batch would mix the envs' actions
         infos = v._step_envs(a, np.arange(n))
         rewards = v._rewards.astype(np.float32)  # DummyVecEnv's reward buffer is float32
         dones = v._terminations | v._truncations

@@ -98,17 +98,11 @@ def command_statistics(n: int) -> dict:
 
 
 def step_cost(episodes: int = 6, steps: int = 150) -> dict:
-    """Wall time per control step of RunUp with the v1 objective against the same machine with the v0
-    objective (``task_version=0``) and against RunUp-v0, on one fixed stable ramp (the same actions),
-    the variants interleaved episode by episode (a shared machine's load drifts); the v1 horizon's last
-    step (with the certificate) is timed apart.  Minimum and median over ``episodes``."""
-    from gfb_env.envs import V1_TASK
-
-    machine = {k: v for k, v in V1_TASK.items() if k != "task_version"}
+    """Wall time per control step of RunUp-v1 on one fixed stable ramp (the same actions; the v0
+    variants it was compared with are retired, issue 18), episode by episode; the horizon's last step
+    (with the certificate) is timed apart.  Minimum and median over ``episodes``."""
     variants = {
         "RunUp-v1": gym.make("gfb_env/RunUp-v1", episode_steps=steps, max_episode_steps=steps),
-        "RunUp machine-v1, objective v0": gym.make("gfb_env/RunUp-v0", **machine, target_tolerance=1e-9),
-        "RunUp-v0": gym.make("gfb_env/RunUp-v0", target_tolerance=1e-9),
     }
     per_step: dict = {k: [] for k in variants}
     last: list[float] = []
@@ -213,7 +207,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument(
         "--command-draws", type=int, default=0, help="only the RunUpRandomized-v1 command statistics"
     )
-    p.add_argument("--step-cost", action="store_true", help="only the wall time per step, v1 against v0")
+    p.add_argument("--step-cost", action="store_true", help="only the wall time per step of RunUp-v1")
     p.add_argument("--no-shocks", action="store_true", help="the tasks without base shocks (an ablation)")
     p.add_argument(
         "--agents", default="oracle_v1,naive", help="comma-separated: oracle_v1, naive and v1 rule names"

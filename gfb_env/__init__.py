@@ -12,7 +12,8 @@ undesirable self-excited vibrations in gas foil bearing rotor systems".
 # defaults (gfb_env._threads): the `gfb` CLI and `python -m gfb_agents.train` for the worker processes
 # they start, gfb_experiments before numpy loads; the Makefile exports the same variables.
 
-# Registers gfb_env/RunUp-v0, gfb_env/RunUpRandomized-v0, gfb_env/WhirlRecovery-v0 with gymnasium.
+# Registers gfb_env/RunUp-v1, gfb_env/RunUpRandomized-v1, gfb_env/WhirlRecovery-v1 with gymnasium (and
+# the retired -v0 ids, which refuse with the id to use).
 import gfb_env.envs  # noqa: F401
 from gfb_env.equilibrium import EquilibriumError, find_equilibrium
 from gfb_env.integrator import (

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from gfb_agents.scripted import ControlSpec
-from gfb_env.envs import ENV_IDS
+from gfb_env.envs import ENV_IDS, RunUpEnv
 from gfb_env.envs.config import CONTROL_INTERVAL_RANGE, EnvConfig
 from gfb_env.envs.episode import StepOutcome, TerminationReason
-from gfb_env.envs.rewards import WHIRL_AMPLITUDE_CAP, RunUpReward, WhirlRecoveryReward
+from gfb_env.envs.rewards import WHIRL_AMPLITUDE_CAP, CommandedSpeedReward
 from gfb_env.envs.units import OBS_DAMPING, OBS_SPEED, ActionMap, ObservationLayout
 from gfb_env.integrator import IntegrationError
 from gfb_env.integrator_options import IntegratorOptions
@@ -28,42 +28,27 @@ def _outcome(lam0=0.45, lam1=0.5, amp=0.1, touchdown=False, failure=False) -> St
 
 
 # ---- reward functions -------------------------------------------------------------------------
-def test_run_up_reward_terms():
-    r = RunUpReward()
-    t = r.terms(_outcome(), success=False, start_bearing_number=0.4, target_bearing_number=0.6)
-    # Phi = -|Lambda - 0.6| / 0.2: from -0.75 to -0.5, times 10
-    assert t["progress"] == pytest.approx(2.5, rel=1e-12)
-    assert t["time"] == -0.02
-    assert t["whirl"] == pytest.approx(-0.05, rel=1e-12)
-    assert t["success"] == 0.0 and t["touchdown"] == 0.0
-    # overshooting the target loses progress; the whirl term saturates; bonus and penalty
-    t = r.terms(_outcome(0.6, 0.65, amp=3.0), True, start_bearing_number=0.4, target_bearing_number=0.6)
-    assert t["progress"] == pytest.approx(-2.5, rel=1e-12)
-    assert t["whirl"] == pytest.approx(-0.5 * WHIRL_AMPLITUDE_CAP)
-    assert t["success"] == 50.0
+def test_commanded_speed_reward_terms():
+    r = CommandedSpeedReward()
+    assert r.progress(0.5, 0.4, 0.6) == pytest.approx(0.5) and r.progress(0.3, 0.4, 0.6) == 0.0
+    assert r.progress(0.7, 0.4, 0.6) == 1.0
+    t = r.terms(_outcome(amp=0.1), stable=True, progress=0.5, certified_progress=None)
+    assert t["speed"] == pytest.approx(0.05) and t["whirl"] == pytest.approx(-0.05)
+    assert t["certified_speed"] == 0.0 and t["on_target"] == 0.0 and t["touchdown"] == 0.0
+    # no speed term while whirling; the whirl term saturates; the horizon's bonuses; the touchdown
+    t = r.terms(_outcome(amp=3.0), stable=False, progress=1.0, certified_progress=0.8, on_target=True)
+    assert t["speed"] == 0.0 and t["whirl"] == pytest.approx(-0.5 * WHIRL_AMPLITUDE_CAP)
+    assert t["certified_speed"] == pytest.approx(40.0) and t["on_target"] == 25.0
     for td, fail in ((True, False), (False, True)):
-        t = r.terms(_outcome(touchdown=td, failure=fail), False, 0.4, 0.6)
-        assert t["touchdown"] == -200.0
+        t = r.terms(_outcome(touchdown=td, failure=fail), False, 0.0, None)
+        assert t["touchdown"] == -100.0
 
 
-def test_whirl_recovery_reward_terms():
-    r = WhirlRecoveryReward()
-    t = r.terms(_outcome(0.72, 0.66, amp=0.2), success=True, whirl_bearing_number=0.72)
-    assert t["speed_loss"] == pytest.approx(-2.0 * 0.06 / 0.72, rel=1e-12)
-    assert t["success"] == pytest.approx(50.0 * 0.66 / 0.72, rel=1e-12)
-    assert t["whirl"] == pytest.approx(-0.1) and t["time"] == -0.02 and t["touchdown"] == 0.0
-    # no speed loss above the whirl speed, no bonus without success
-    t = r.terms(_outcome(0.72, 0.75, amp=0.0), success=False, whirl_bearing_number=0.72)
-    assert t["speed_loss"] == 0.0 and t["success"] == 0.0
-    assert r.terms(_outcome(touchdown=True), False, 0.72)["touchdown"] == -200.0
-
-
-@pytest.mark.parametrize("cls", [RunUpReward, WhirlRecoveryReward])
-def test_reward_weights_are_validated(cls):
-    with pytest.raises(ValueError, match="time_penalty"):
-        cls(time_penalty=-1.0)
+def test_reward_weights_are_validated():
+    with pytest.raises(ValueError, match="speed_weight"):
+        CommandedSpeedReward(speed_weight=-1.0)
     with pytest.raises(ValueError, match="success_bonus"):
-        cls(success_bonus=math.nan)
+        CommandedSpeedReward(success_bonus=math.nan)
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -74,7 +59,7 @@ def test_reward_terms_in_info_sum_to_the_reward(env_id):
     for _ in range(3):
         _, r, term, trunc, info = env.step(env.action_space.sample())
         terms = {k: v for k, v in info.items() if k.startswith("reward_")}
-        assert len(terms) == 5  # v0: RunUp/WhirlRecoveryReward; v1: CommandedSpeedReward
+        assert len(terms) == 5  # CommandedSpeedReward's
         assert sum(terms.values()) == pytest.approx(r, abs=1e-12)
         assert r == env.unwrapped.episode.reward
 
@@ -104,7 +89,7 @@ def test_bad_constructor_arguments_are_refused_by_name(env_id, kwargs, name):
 
 def test_observe_parameters_must_be_a_bool():
     with pytest.raises(ValueError, match="observe_parameters"):
-        gym.make("gfb_env/RunUpRandomized-v0", observe_parameters="no")
+        gym.make("gfb_env/RunUpRandomized-v1", observe_parameters="no")
 
 
 def test_control_interval_range_is_documented_and_enforced():
@@ -117,7 +102,7 @@ def test_control_interval_range_is_documented_and_enforced():
 
 def test_integrator_options_reach_the_integrator_and_the_touchdown_threshold_is_the_envs():
     env = gym.make(
-        "gfb_env/WhirlRecovery-v0", integrator_options={"rtol": 1e-3}, touchdown_film_thickness=0.05, **FAST
+        "gfb_env/WhirlRecovery-v1", integrator_options={"rtol": 1e-3}, touchdown_film_thickness=0.05, **FAST
     ).unwrapped
     env.reset(seed=0)
     assert env._integ.rtol == 1e-3
@@ -125,7 +110,7 @@ def test_integrator_options_reach_the_integrator_and_the_touchdown_threshold_is_
     assert IntegratorOptions.from_mapping({"rtol": 1e-3}).as_kwargs()["atol"] == IntegratorOptions().atol
 
 
-@pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v0", "gfb_env/WhirlRecovery-v0"])
+@pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v1", "gfb_env/WhirlRecovery-v1"])
 def test_tasks_without_options_refuse_any(env_id):
     env = gym.make(env_id, **FAST)
     with pytest.raises(ValueError, match="clearance_m"):
@@ -135,7 +120,7 @@ def test_tasks_without_options_refuse_any(env_id):
 
 
 def test_randomized_reset_options_are_checked_and_fix_the_draw():
-    env = gym.make("gfb_env/RunUpRandomized-v0", **FAST)
+    env = gym.make("gfb_env/RunUpRandomized-v1", **FAST)
     with pytest.raises(ValueError, match="clearence_m"):  # a typo is not silently a random draw
         env.reset(seed=0, options={"clearence_m": 50e-6})
     with pytest.raises(ValueError, match="'load_n' must lie in"):
@@ -149,7 +134,7 @@ def test_randomized_reset_options_are_checked_and_fix_the_draw():
 
 # ---- episode, snapshots, failures -------------------------------------------------------------
 def test_integrator_steps_count_the_episode_across_kicks():
-    env = gym.make("gfb_env/RunUp-v0", disturbance_probability=1.0, **FAST)
+    env = RunUpEnv(disturbance_probability=1.0, **FAST)  # the velocity kick (the ideal machine's option)
     _, info = env.reset(seed=0)
     assert info["integrator_steps"] == 0
     counts = []
@@ -161,7 +146,7 @@ def test_integrator_steps_count_the_episode_across_kicks():
 
 
 def test_episode_copy_shares_the_plant_and_copies_the_rest():
-    env = gym.make("gfb_env/RunUp-v0", **FAST).unwrapped
+    env = gym.make("gfb_env/RunUp-v1", **FAST).unwrapped
     env.reset(seed=0)
     env.step(np.array([1.0, 0.0], dtype=np.float32))
     ep = env.episode
@@ -173,24 +158,24 @@ def test_episode_copy_shares_the_plant_and_copies_the_rest():
 
 
 def test_step_survives_numerical_failures_only(monkeypatch):
-    env = gym.make("gfb_env/RunUp-v0", **FAST).unwrapped
+    env = gym.make("gfb_env/RunUp-v1", **FAST).unwrapped
     env.reset(seed=0)
 
     def fail(*a, **k):
         raise IntegrationError("step size fell below min_step")
 
-    monkeypatch.setattr(env._integ, "advance", fail)
+    monkeypatch.setattr(env._integ, "prepare", fail)
     obs, r, term, trunc, info = env.step(np.zeros(2, dtype=np.float32))
     assert term and info["termination_reason"] is TerminationReason.SOLVER_FAILURE
     assert info["termination_reason"] == "solver_failure"
-    assert np.all(np.isfinite(obs)) and math.isfinite(r) and info["reward_touchdown"] == -200.0
+    assert np.all(np.isfinite(obs)) and math.isfinite(r) and info["reward_touchdown"] == -100.0
 
     env.reset(seed=0)
 
     def bug(*a, **k):
         raise TypeError("a programming error")
 
-    monkeypatch.setattr(env._integ, "advance", bug)
+    monkeypatch.setattr(env._integ, "prepare", bug)
     with pytest.raises(TypeError, match="programming error"):
         env.step(np.zeros(2, dtype=np.float32))
 
@@ -230,20 +215,19 @@ def test_observation_layout_bounds():
     assert list(lay.measured_indices) == [0, 1, 2, 3, 4, 5, 8, 9, 10, 11]
 
 
-@pytest.mark.parametrize("env_id", [i for i in ENV_IDS if i.endswith("-v1")])
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_a_step_that_records_no_sample_does_not_crash_the_sensors(env_id, monkeypatch):
     """A touchdown in the first integrator step leaves the control step without samples: the noisy
     probes then read the current position (no crash, finite observation)."""
     env = gym.make(env_id, **FAST).unwrapped
     env.reset(seed=0)
-    advance = env._integ.advance
+    finish = env.finish_step
 
-    def no_samples(*a, **k):
-        res = advance(*a, **k)
+    def no_samples(plan, res):
         tr = res.trajectory
         empty = type(tr)(**{f: getattr(tr, f)[:0] for f in tr.__dataclass_fields__})
-        return dataclasses.replace(res, trajectory=empty)
+        return finish(plan, dataclasses.replace(res, trajectory=empty))
 
-    monkeypatch.setattr(env._integ, "advance", no_samples)
+    monkeypatch.setattr(env, "finish_step", no_samples)
     obs, r, term, trunc, info = env.step(np.zeros(2, dtype=np.float32))
     assert np.all(np.isfinite(obs)) and math.isfinite(r)

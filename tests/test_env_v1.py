@@ -1,5 +1,5 @@
 """The v1 tasks: the instrumented machine (actuator, sensors, base shocks, residual unbalance) wired
-into the environments; the v0 tasks keep their plant."""
+into the environments; the classes alone keep the ideal machine; the v0 ids are retired."""
 
 from __future__ import annotations
 
@@ -9,7 +9,15 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gfb_env.envs import ENV_IDS, MACHINE_V1, V0_IDS
+from gfb_env.envs import (
+    ENV_IDS,
+    MACHINE_V1,
+    RETIRED_IDS,
+    RetiredTaskError,
+    RunUpEnv,
+    RunUpRandomizedEnv,
+    WhirlRecoveryEnv,
+)
 from gfb_env.forcing import Unbalance
 from gfb_env.machine import RotorBalance, ShockArrivals
 from gfb_env.params import BearingParameters
@@ -18,8 +26,31 @@ FAST = {"control_interval": 20.0}
 V1_IDS = tuple(i for i in ENV_IDS if i.endswith("-v1"))
 
 
-def test_every_v0_task_has_a_v1():
-    assert {i.replace("-v0", "-v1") for i in V0_IDS} == set(V1_IDS)
+def test_the_tasks_are_the_v1_ids():
+    assert ENV_IDS == V1_IDS and len(V1_IDS) == 3
+    assert set(RETIRED_IDS.values()) == set(V1_IDS)
+    assert {i.replace("-v0", "-v1") for i in RETIRED_IDS} == set(V1_IDS)
+
+
+@pytest.mark.parametrize("env_id", sorted(RETIRED_IDS))
+def test_a_retired_id_raises_one_clear_error(env_id):
+    """gym.make and gym.make_vec (every vectorization mode) of a v0 id: one error that says why and
+    which id to use."""
+    import gymnasium.error
+
+    new = RETIRED_IDS[env_id]
+    makers = [
+        lambda: gym.make(env_id),
+        lambda: gym.make(env_id, **FAST),
+        lambda: gym.make_vec(env_id, num_envs=2),
+        lambda: gym.make_vec(env_id, num_envs=2, vectorization_mode="sync"),
+    ]
+    for make in makers:
+        with pytest.raises(RetiredTaskError) as err:
+            make()
+        msg = str(err.value)
+        assert env_id in msg and f"Use {new}" in msg and "identifiable" in msg and "CHANGELOG.md" in msg
+        assert isinstance(err.value, gymnasium.error.Error) and isinstance(err.value, ValueError)
 
 
 def test_rotor_balance_draws_an_iso_grade_and_a_phase():
@@ -66,15 +97,16 @@ def test_v1_episode_carries_its_unbalance_into_the_integrator(env_id):
     assert info3["balance_grade_mm_s"] == grade
 
 
-@pytest.mark.parametrize("env_id", V0_IDS)
-def test_v0_has_no_unbalance_and_no_shocks(env_id):
-    env = gym.make(env_id, **FAST)
+@pytest.mark.parametrize("cls", [RunUpEnv, RunUpRandomizedEnv, WhirlRecoveryEnv])
+def test_the_class_alone_is_the_ideal_machine_without_unbalance_or_shocks(cls):
+    env = cls(**FAST)
+    env.action_space.seed(0)
     _, info = env.reset(seed=0)
     for _ in range(3):
         _, _, term, _, info = env.step(env.action_space.sample())
         if term:
             break
-    assert env.unwrapped._integ.unbalance is None
+    assert env._integ.unbalance is None and info["damping_gain"] == 1.0
     assert info["balance_grade_mm_s"] == 0.0 and info["unbalance_um"] == 0.0 and info["shocks"] == 0
 
 

@@ -37,18 +37,11 @@ def test_v1_observation_ends_with_the_command_and_the_time_left(env_id):
     obs, info = env.reset(seed=3)
     assert obs in env.observation_space
     assert lay.speed_command_rpm(obs) == pytest.approx(info["speed_command_rpm"], rel=1e-6)
-    assert lay.time_left(obs) == 1.0 and info["steps_left"] == u.commanded.episode_steps
+    assert lay.time_left(obs) == 1.0 and info["steps_left"] == u.objective.episode_steps
     obs, *_ = env.step(np.zeros(2, dtype=np.float32))
-    assert lay.time_left(obs) == pytest.approx(1.0 - 1.0 / u.commanded.episode_steps)
+    assert lay.time_left(obs) == pytest.approx(1.0 - 1.0 / u.objective.episode_steps)
     with pytest.raises(ValueError, match="no entry"):
         lay.index("nonsense")
-
-
-@pytest.mark.parametrize("env_id", [i for i in ENV_IDS if i.endswith("-v0")])
-def test_v0_observation_is_unchanged(env_id):
-    lay = gym.make(env_id).unwrapped.observation_layout
-    assert lay.size == 16 and SPEED_COMMAND not in lay.names
-    assert lay.names[:8] == ("xi", "eta", "xi_dot", "eta_dot", "xi_extent", "eta_extent", "speed", "damping")
 
 
 def test_observe_parameters_come_before_the_command():
@@ -92,7 +85,7 @@ def test_every_v1_task_hides_the_damping_gain_and_its_horizon_is_the_time_limit(
     expected = V1_WHIRL_RECOVERY_GAIN_RANGE if "WhirlRecovery" in env_id else V1_DAMPING_GAIN_RANGE
     assert u.damping_actuator.gain_range == pytest.approx(expected)
     assert V1_DAMPING_GAIN_RANGE == pytest.approx((0.3162, 3.162), rel=1e-3)
-    assert env.spec.max_episode_steps == u.commanded.episode_steps
+    assert env.spec.max_episode_steps == u.objective.episode_steps
     gains = set()
     for seed in range(3):
         _, info = env.reset(seed=seed)
@@ -294,15 +287,45 @@ def test_the_episode_best_point_respects_the_achievable_damping():
     assert env.best_stable_operating_point() is bp  # cached for the episode
 
 
-def test_v0_refuses_the_v1_arguments():
-    with pytest.raises(ValueError, match="episode_steps"):
-        gym.make("gfb_env/RunUp-v0", episode_steps=10)
-    with pytest.raises(ValueError, match="task_version"):
-        gym.make("gfb_env/RunUp-v0", task_version=2)
+def test_the_objective_is_a_component_built_from_the_task_arguments():
+    """The objective is an object the task holds (no version flag): its horizon, tolerance, reward and
+    costs come from the task's arguments (an instance or a dict of fields over the task's defaults)."""
+    from gfb_env.envs.commanded import CommandedObjective
+    from gfb_env.envs.rewards import CommandedSpeedReward
+
+    u = gym.make("gfb_env/RunUp-v1", episode_steps=40, reward={"speed_weight": 0.2}, **FAST).unwrapped
+    obj = u.objective
+    assert isinstance(obj, CommandedObjective) and obj.episode_steps == 40
+    assert obj.reward == CommandedSpeedReward(speed_weight=0.2) and obj.costs == CostSpec()
+    assert obj.certificate == StabilityCertificate(u.stable_amplitude, u.hold_steps)
+    assert obj.target_tolerance == 0.02
+    w = gym.make("gfb_env/WhirlRecovery-v1", costs={"whirl_amplitude": 0.2}, **FAST).unwrapped
+    assert w.objective.costs == CostSpec(whirl_amplitude=0.2, episode_cost_limit=15.0)  # the task's 15 kept
+    assert gym.make("gfb_env/WhirlRecovery-v1", **FAST).unwrapped.objective.episode_steps == 200
+    costs = CostSpec(film_thickness=0.2)
+    assert gym.make("gfb_env/RunUp-v1", costs=costs, **FAST).unwrapped.objective.costs is costs
+
+
+def test_bad_objective_arguments_are_refused_naming_them():
+    for kw, match in [
+        ({"episode_steps": 5}, "hold_steps"),  # the window (10) must fit
+        ({"episode_steps": 0}, "episode_steps"),
+        ({"target_tolerance": 0.0}, "target_tolerance"),
+        ({"reward": {"speed_wieght": 0.2}}, "reward: unknown field"),
+        ({"reward": {"whirl_penalty": -1.0}}, "whirl_penalty"),
+        ({"costs": {"whirl_amplitude": -1.0}}, "cost_whirl_amplitude"),
+        ({"costs": 3}, "costs must be a CostSpec"),
+        ({"task_version": 1}, "task_version"),  # the flag is gone: an unknown argument
+        ({"command_fraction_range": (0.5, 0.4)}, "command_fraction_range"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            gym.make("gfb_env/RunUp-v1", **kw)
     with pytest.raises(ValueError, match="reference_fraction"):
-        gym.make("gfb_env/WhirlRecovery-v0", reference_fraction=0.9)
-    with pytest.raises(ValueError, match="hold_steps"):
-        gym.make("gfb_env/RunUp-v1", episode_steps=5)  # the window (10) must fit
+        gym.make("gfb_env/WhirlRecovery-v1", reference_fraction=1.0)
+    with pytest.raises(ValueError, match="command_range_rpm"):
+        gym.make("gfb_env/RunUpRandomized-v1", command_fraction_range=(0.9, 1.0))
+    with pytest.raises(ValueError, match="command_range_rpm"):
+        gym.make("gfb_env/RunUpRandomized-v1", command_range_rpm=(10_000.0, 50_000.0))
 
 
 @pytest.mark.parametrize("env_id", V1_IDS)

@@ -53,7 +53,7 @@ def test_nominal_map_missing_hysteresis_map_is_an_error_not_an_empty_fold(tmp_pa
 
     from gfb_agents.nominal_map import NominalMap
 
-    env = gym.make("gfb_env/RunUp-v0")
+    env = gym.make("gfb_env/RunUp-v1")
     nmap = NominalMap.from_env(env)  # the shipped map: it lacks K_W = 0.50, so the fold is unknown
     assert len(nmap.fold) == 0 and math.isnan(nmap.fold_at(2.0))
     with pytest.raises(FileNotFoundError, match="hysteresis"):
@@ -89,7 +89,7 @@ def test_train_finds_its_hyperparameters_in_the_package():
     from gfb_agents.train import HYPERPARAMS_DIR, load_hyperparams
 
     assert HYPERPARAMS_DIR == Path(gfb_agents.train.__file__).resolve().parent / "hyperparams"
-    assert load_hyperparams("sac", "gfb_env/WhirlRecovery-v0")
+    assert load_hyperparams("sac", "gfb_env/WhirlRecovery-v1")
 
 
 # ------------------------------------------------------------------------------------ task constants

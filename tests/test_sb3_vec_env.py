@@ -21,15 +21,11 @@ FAST = {"control_interval": 20.0}
 
 
 def _kw(env_id: str) -> dict:
-    dist = (
-        {"disturbance_probability": 0.5}
-        if env_id.endswith("-v0")
-        else {"shock_arrivals": {"rate_per_s": 20.0, "peak_g_range": (1.0, 5.0)}}
-    )
+    dist = {"shock_arrivals": {"rate_per_s": 20.0, "peak_g_range": (1.0, 5.0)}}
     return {**FAST, **dist, "max_episode_steps": 3}
 
 
-@pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v0", "gfb_env/RunUpRandomized-v1"])
+@pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1"])
 def test_adapter_is_dummy_vec_env_bit_for_bit(env_id):
     n, kw = 3, _kw(env_id)
     native = make_vec_env_for(env_id, n, seed=5, env_kwargs=kw, vec_env="native")
@@ -62,7 +58,7 @@ def test_adapter_is_dummy_vec_env_bit_for_bit(env_id):
 
 
 def test_vec_normalize_over_the_native_env_matches_dummy():
-    env_id, n = "gfb_env/WhirlRecovery-v0", 2
+    env_id, n = "gfb_env/WhirlRecovery-v1", 2
     native = VecNormalize(make_vec_env_for(env_id, n, seed=1, env_kwargs=_kw(env_id), vec_env="native"))
     dummy = VecNormalize(make_vec_env(env_id, n_envs=n, seed=1, env_kwargs=_kw(env_id)))
     assert np.array_equal(native.reset(), dummy.reset())
@@ -77,7 +73,7 @@ def test_vec_normalize_over_the_native_env_matches_dummy():
 
 
 def test_train_with_the_native_vector_env(tmp_path):
-    env_id = "gfb_env/RunUp-v0"
+    env_id = "gfb_env/RunUp-v1"
     cfg = TrainConfig(
         "ppo",
         env_id,
@@ -104,3 +100,18 @@ def test_train_with_the_native_vector_env(tmp_path):
     assert len(rows) == meta["timesteps"] // 8 and all(int(r[1]) == 8 for r in rows)
     with pytest.raises(ValueError, match="vec_env"):
         TrainConfig("ppo", env_id, vec_env="threads")
+
+
+def test_adapter_refuses_a_batch_that_is_not_n_by_2():
+    """Defect 11 (issue 18): a (2N,), (2, N) or (1, 2N) batch was reshaped to (N, 2), mixing the envs'
+    actions (a transposed batch gave env 0 the speed actions of envs 0 and 1)."""
+    n = 3
+    adapter = GFBSB3VecEnv(gfb_env.envs.GFBVectorEnv(n, env_class=gfb_env.envs.RunUpEnv, **FAST))
+    adapter.reset()
+    for bad in (np.zeros(2 * n), np.zeros((2, n)), np.zeros((1, 2 * n)), np.zeros((n, 2, 1))):
+        adapter.step_async(bad)
+        with pytest.raises(ValueError, match=rf"actions must have shape \({n}, 2\)"):
+            adapter.step_wait()
+    adapter.step_async(np.zeros((n, 2), np.float32))
+    obs, rewards, dones, infos = adapter.step_wait()
+    assert obs.shape == (n, adapter.observation_space.shape[0]) and [i["step"] for i in infos] == [1] * n

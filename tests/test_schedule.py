@@ -6,7 +6,6 @@ import json
 import math
 import time
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -15,6 +14,7 @@ from gfb_agents.scripted import ControlSpec, ScheduleAgent
 from gfb_env.analysis.response import unbalance_response
 from gfb_env.analysis.schedule import design_run_up_schedule, verify_schedule
 from gfb_env.cli import main as gfb
+from gfb_env.envs import RunUpEnv
 from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.forcing import Unbalance
 from gfb_env.model import GFBModel
@@ -134,15 +134,19 @@ def test_cli_writes_the_schedule_map_and_summary(tmp_path, capsys):
 
 
 def test_the_schedule_as_a_policy_succeeds_on_run_up():
-    env = gym.make("gfb_env/RunUp-v0")
-    u = env.unwrapped
+    """On the ideal machine (the class alone: g = 1, exact sensors) the designed schedule to a command
+    below the best stable speed is a successful (certified, on target) RunUp episode."""
+    env = RunUpEnv()
+    u = env
+    seed = next(s for s in range(30) if (env.reset(seed=s), env.speed_command)[1].bearing_number < 0.69)
+    env.reset(seed=seed)
     m = GFBModel("viscoelastic", u.grid, bearing=NOMINAL_BEARING)
-    lam_t = u.target_bearing_number
+    lam_t = u.speed_command.bearing_number
     sch = design_run_up_schedule(m, lam_t, margin=0.04, fold_dampings=0, rate=u.max_rate(NOMINAL_BEARING))
     assert sch.feasible
     agent = ScheduleAgent.from_schedule(ControlSpec.from_env(env), sch)
     assert agent.ramp == pytest.approx(1.0) and agent.damping == sch.foil_damping
-    res = run_episode(env, agent, seed=3)
+    res = run_episode(env, agent, seed=seed)
     assert res.success, res
 
 

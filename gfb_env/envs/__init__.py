@@ -2,15 +2,16 @@
 
 Importing this package registers (idempotently):
 
-* ``gfb_env/RunUp-v0`` (:class:`~gfb_env.envs.run_up.RunUpEnv`, ``max_episode_steps=200``)
-* ``gfb_env/RunUpRandomized-v0`` (:class:`~gfb_env.envs.run_up_randomized.RunUpRandomizedEnv`, 250)
-* ``gfb_env/WhirlRecovery-v0`` (:class:`~gfb_env.envs.whirl_recovery.WhirlRecoveryEnv`, 200)
-* ``gfb_env/RunUp-v1`` (250), ``gfb_env/RunUpRandomized-v1`` (250), ``gfb_env/WhirlRecovery-v1`` (200):
+* ``gfb_env/RunUp-v1`` (:class:`~gfb_env.envs.run_up.RunUpEnv`, ``max_episode_steps=250``),
+  ``gfb_env/RunUpRandomized-v1`` (:class:`~gfb_env.envs.run_up_randomized.RunUpRandomizedEnv`, 250),
+  ``gfb_env/WhirlRecovery-v1`` (:class:`~gfb_env.envs.whirl_recovery.WhirlRecoveryEnv`, 200):
   the commanded-speed tasks (:data:`V1_TASK`, :mod:`gfb_env.envs.commanded`: an observed speed
   command, a fixed horizon, a stability certificate at the end, costs) on the instrumented machine
   (:data:`MACHINE_V1`: actuator lag and rate limit, noisy biased probes and taps, random base shocks
   instead of the velocity kick, a residual unbalance; ``docs/machine.md``) with a hidden damping
-  effectiveness (:data:`V1_DAMPING_GAIN_RANGE`).  The v0 ids stay bit-for-bit reproducible.
+  effectiveness (:data:`V1_DAMPING_GAIN_RANGE`).
+* the retired ``gfb_env/RunUp-v0``, ``gfb_env/RunUpRandomized-v0``, ``gfb_env/WhirlRecovery-v0``: making
+  one raises :class:`~gfb_env.envs.retired.RetiredTaskError` (why, and the -v1 id to use).
 
 Every id has a native vector env (:class:`~gfb_env.envs.vector.GFBVectorEnv`, registered as its
 ``vector_entry_point``): ``gymnasium.make_vec(id, num_envs=N)`` returns it, bit for bit the same as
@@ -22,7 +23,9 @@ from __future__ import annotations
 from gymnasium.envs.registration import register, registry
 
 from gfb_env.envs._data import NOMINAL_BEARING
-from gfb_env.envs.base import DEFAULT_GRID, GFBEnv
+from gfb_env.envs.base import DEFAULT_GRID, GFBEnv, PlantResult, StepPlan, advance_plans
+from gfb_env.envs.commanded import CommandedObjective
+from gfb_env.envs.retired import RETIRED_IDS, RetiredEntryPoint, RetiredTaskError
 from gfb_env.envs.run_up import RunUpEnv
 from gfb_env.envs.run_up_randomized import RunUpRandomizedEnv
 from gfb_env.envs.vector import GFBVectorEnv
@@ -41,10 +44,15 @@ __all__ = [
     "RunUpRandomizedEnv",
     "WhirlRecoveryEnv",
     "GFBVectorEnv",
+    "StepPlan",
+    "PlantResult",
+    "advance_plans",
+    "CommandedObjective",
     "DEFAULT_GRID",
     "NOMINAL_BEARING",
     "ENV_IDS",
-    "V0_IDS",
+    "RETIRED_IDS",
+    "RetiredTaskError",
     "MACHINE_V1",
     "V1_TASK",
     "V1_DAMPING_GAIN_RANGE",
@@ -89,14 +97,10 @@ V1_TASK: dict = {
     **MACHINE_V1,
     "damping_actuator": FoilDampingActuator(gain_range=V1_DAMPING_GAIN_RANGE),
     "shock_arrivals": ShockArrivals(peak_g_range=V1_SHOCK_PEAK_G_RANGE),
-    "task_version": 1,
 }
 
 #: registered ids -> (entry point, max_episode_steps, default keyword arguments)
 _SPECS = {
-    "gfb_env/RunUp-v0": ("gfb_env.envs.run_up:RunUpEnv", 200, {}),
-    "gfb_env/RunUpRandomized-v0": ("gfb_env.envs.run_up_randomized:RunUpRandomizedEnv", 250, {}),
-    "gfb_env/WhirlRecovery-v0": ("gfb_env.envs.whirl_recovery:WhirlRecoveryEnv", 200, {}),
     "gfb_env/RunUp-v1": ("gfb_env.envs.run_up:RunUpEnv", 250, V1_TASK),
     "gfb_env/RunUpRandomized-v1": ("gfb_env.envs.run_up_randomized:RunUpRandomizedEnv", 250, V1_TASK),
     "gfb_env/WhirlRecovery-v1": (
@@ -111,13 +115,13 @@ _VECTOR_ENTRY_POINTS = {
     "gfb_env.envs.run_up_randomized:RunUpRandomizedEnv": "gfb_env.envs.vector:RunUpRandomizedVectorEnv",
     "gfb_env.envs.whirl_recovery:WhirlRecoveryEnv": "gfb_env.envs.vector:WhirlRecoveryVectorEnv",
 }
+#: the tasks (the v0 ids are retired: :mod:`gfb_env.envs.retired`)
 ENV_IDS = tuple(_SPECS)
-#: the tasks of the published (v0) benchmark table
-V0_IDS = tuple(i for i in ENV_IDS if i.endswith("-v0"))
 
 
 def register_envs() -> None:
-    """Register the tasks with Gymnasium (no-op for ids already registered)."""
+    """Register the tasks with Gymnasium, and the retired ids as refusals (no-op for ids already
+    registered)."""
     for env_id, (entry_point, steps, kwargs) in _SPECS.items():
         if env_id not in registry:
             register(
@@ -127,6 +131,10 @@ def register_envs() -> None:
                 max_episode_steps=steps,
                 kwargs=dict(kwargs),
             )
+    for env_id in RETIRED_IDS:
+        if env_id not in registry:
+            retired = RetiredEntryPoint(env_id)
+            register(id=env_id, entry_point=retired, vector_entry_point=retired)
 
 
 register_envs()

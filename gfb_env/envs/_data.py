@@ -79,7 +79,7 @@ def load_task_constants() -> dict:
 
 
 def randomized_task_table() -> dict:
-    """The RunUpRandomized-v0 lookup table of ``data/task_constants.json`` (ValueError if absent)."""
+    """The RunUpRandomized lookup table of ``data/task_constants.json`` (ValueError if absent)."""
     table = load_task_constants().get("randomized")
     if not isinstance(table, dict):
         raise ValueError(

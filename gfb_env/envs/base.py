@@ -13,13 +13,18 @@ command into the actual D_W at the step's end: :mod:`gfb_env.machine`), *plant* 
 then the integrator over the control interval), *judge* (stability, hold, success, termination and the
 task's reward terms, from the true plant) and *emit* (the observation, built from the sensors:
 proximity probes and pressure taps, and info).  With the default (ideal) actuator and sensors the
-machine is exactly v0's.  Everything that changes within an episode is
+machine is ideal (the registered ids add the instrumented one).  Everything that changes within an episode is
 one :class:`~gfb_env.envs.episode.Episode`; the configuration is one frozen
 :class:`~gfb_env.envs.config.EnvConfig`.
 
-Subclasses define the task (:meth:`GFBEnv._setup_episode`, :meth:`GFBEnv._reward_terms` and optionally
-:meth:`GFBEnv._is_at_target` and :attr:`GFBEnv.reset_options`); see ``run_up.py``,
+Subclasses define the task: the episode (:meth:`GFBEnv._setup_episode`, :attr:`GFBEnv.reset_options`),
+the first guess and caching of the plant's best stable point, and the objective they hold
+(``self.objective``, a :class:`~gfb_env.envs.commanded.CommandedObjective`); see ``run_up.py``,
 ``run_up_randomized.py`` and ``whirl_recovery.py``, ``docs/envs.md`` and ``docs/extending.md``.
+
+The step is a public two-phase protocol (:meth:`GFBEnv.plan_step`, the plant :func:`advance_plans`,
+:meth:`GFBEnv.finish_step`): :meth:`GFBEnv.step` is the three for one env, the native vector env
+(:mod:`gfb_env.envs.vector`) the same three over a batch with one compiled plant call.
 
 Scaling of the observations: the sensors measure in physical units and the observation divides them
 by the scales of the *nominal* bearing of the task (clearance C_nom, time scale T_nom, ``speed_scale_rpm``).
@@ -33,7 +38,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, SupportsFloat
 
@@ -41,6 +46,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from gfb_env.envs.certify import BestStablePoint, best_stable_operating_point
+from gfb_env.envs.commanded import CertifiedPlant, CommandedEpisode, CommandedObjective, SpeedCommand
 from gfb_env.envs.config import DEFAULT_GRID, EnvConfig
 from gfb_env.envs.episode import Episode, EpisodeSetup, History, StepOutcome, TerminationReason
 from gfb_env.envs.render import EpisodeRenderer
@@ -58,12 +65,28 @@ from gfb_env.envs.units import (
     ObservationLayout,
 )
 from gfb_env.forcing import HalfSineShock
-from gfb_env.integrator import AdvanceResult, IntegrationError, TrapezoidalIntegrator
+from gfb_env.integrator import (
+    DEFAULT_MAX_STEPS,
+    AdvanceResult,
+    BatchAdvance,
+    IntegrationError,
+    PreparedCall,
+    TrapezoidalIntegrator,
+)
 from gfb_env.machine import FoilDampingActuator, Motor, PressureTaps, ProximityProbes
 from gfb_env.model import GFBModel, Grid, Structure
 from gfb_env.params import BearingParameters
 
-__all__ = ["GFBEnv", "EpisodeSetup", "StepOutcome", "DEFAULT_GRID", "viscoelastic_model"]
+__all__ = [
+    "GFBEnv",
+    "StepPlan",
+    "PlantResult",
+    "advance_plans",
+    "EpisodeSetup",
+    "StepOutcome",
+    "DEFAULT_GRID",
+    "viscoelastic_model",
+]
 
 #: The numerical failures a control step survives (reported as ``"solver_failure"``); anything else is
 #: a programming error and propagates.
@@ -80,6 +103,52 @@ class PlantTrace:
     integrator_steps: int
 
 
+#: What the plant phase of a step gives :meth:`GFBEnv.finish_step`: the integrator's result, or the
+#: numerical failure (:data:`NUMERICAL_FAILURES`) it raised.
+PlantResult = AdvanceResult | Exception
+
+
+@dataclass(frozen=True)
+class StepPlan:
+    """The first phase of one control step (:meth:`GFBEnv.plan_step`): what the env commanded and the
+    plant's prepared call.
+
+    Attributes:
+        action: the sanitised action (float64, ``(2,)``); action_sanitised: whether it was mended.
+        disturbance: a velocity kick was applied at the step's start.
+        bearing_number_start: Lambda at the step's start.
+        bearing_number, foil_damping: Lambda and the actual D_W commanded for the step's end.
+        integrator: the env's integrator, which the plant advances.
+        call: its prepared compiled call (:meth:`~gfb_env.integrator.TrapezoidalIntegrator.prepare`);
+            None when preparing it raised a numerical failure, then ``failure``.
+    """
+
+    action: np.ndarray
+    action_sanitised: bool
+    disturbance: bool
+    bearing_number_start: float
+    bearing_number: float
+    foil_damping: float
+    integrator: TrapezoidalIntegrator
+    call: PreparedCall | None
+    failure: Exception | None = None
+
+    def __post_init__(self) -> None:
+        if (self.call is None) == (self.failure is None):
+            raise ValueError("StepPlan: exactly one of call and failure must be given")
+
+
+def advance_plans(batch: BatchAdvance, plans: Sequence[StepPlan]) -> list[PlantResult]:
+    """The plant phase of a step for any number of plans (one env's, or a vector env's batch): every
+    prepared call in one compiled call of ``batch``
+    (:meth:`~gfb_env.integrator.BatchAdvance.run_prepared`, the envs' loops in parallel when it has
+    threads; each result is bit for bit the integrator's own ``advance``), a plan whose preparation
+    failed keeps its failure."""
+    ready = [p for p in plans if p.call is not None]
+    done = iter(batch.run_prepared([p.integrator for p in ready], [p.call for p in ready]))
+    return [next(done) if p.call is not None else p.failure for p in plans]  # type: ignore[misc]
+
+
 class _FromConfig:
     """A read-only attribute of the env forwarded to its :class:`EnvConfig` (one owner)."""
 
@@ -93,14 +162,23 @@ class _FromConfig:
 class GFBEnv(gym.Env):
     """Common machinery of the GFB tasks (actions, observations, integration, snapshots, rendering).
 
-    Keyword arguments are those of :class:`~gfb_env.envs.config.EnvConfig` (``grid``,
-    ``control_interval``, ``max_acceleration_rpm_per_s``, ``speed_range_rpm``, ``damping_range``,
-    ``n_pressure_probes``, ``observation_noise``, ``touchdown_film_thickness``, ``stable_amplitude``,
-    ``hold_steps``, ``disturbance_probability``, ``disturbance_magnitude``, ``speed_scale_rpm``,
-    ``nominal_bearing``, ``integrator_options``, and the machine's components ``motor``,
-    ``damping_actuator``, ``proximity_probes``, ``pressure_taps``: objects of :mod:`gfb_env.machine` or
-    dicts of their fields), plus ``render_mode`` (``None``, ``"rgb_array"`` or
-    ``"human"``).  An unknown keyword or a bad value raises ``ValueError`` naming it.
+    A task subclass decides the episode (:meth:`_setup_episode`: the plant, its start, the speed
+    command) and holds its objective (``objective``, a
+    :class:`~gfb_env.envs.commanded.CommandedObjective`: observation entries, judge, reward, horizon,
+    info); everything else is here.
+
+    Args:
+        objective: the task's objective.
+        config: the validated configuration (:class:`~gfb_env.envs.config.EnvConfig`: ``grid``,
+            ``control_interval``, ``max_acceleration_rpm_per_s``, ``speed_range_rpm``, ``damping_range``,
+            ``n_pressure_probes``, ``observation_noise``, ``touchdown_film_thickness``,
+            ``stable_amplitude``, ``hold_steps``, ``disturbance_probability``, ``disturbance_magnitude``,
+            ``speed_scale_rpm``, ``nominal_bearing``, ``integrator_options``, and the machine's
+            components ``motor``, ``damping_actuator``, ``proximity_probes``, ``pressure_taps``,
+            ``shock_arrivals``, ``rotor_balance``: objects of :mod:`gfb_env.machine` or dicts of their
+            fields); the tasks build it from their keyword arguments (an unknown keyword or a bad value
+            raises ``ValueError`` naming it).
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
@@ -108,9 +186,14 @@ class GFBEnv(gym.Env):
     #: keys that ``reset(options=...)`` accepts (the task validates their values)
     reset_options: ClassVar[tuple[str, ...]] = ()
 
-    def __init__(self, render_mode: str | None = None, **kwargs: Any):
+    def __init__(self, objective: CommandedObjective, config: EnvConfig, render_mode: str | None = None):
         super().__init__()
-        self.config = EnvConfig.from_kwargs(kwargs)
+        if not isinstance(config, EnvConfig):
+            raise ValueError(f"config must be an EnvConfig, got {config!r}")
+        if not isinstance(objective, CommandedObjective):
+            raise ValueError(f"objective must be a CommandedObjective, got {objective!r}")
+        self.config = config
+        self.objective = objective
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"
@@ -118,14 +201,18 @@ class GFBEnv(gym.Env):
         self.render_mode = render_mode
         cfg = self.config
         self.actions = ActionMap(cfg.damping_range, cfg.max_acceleration_rpm_per_s)
+        # the task's own entries (if any), then the objective's (they end the observation)
         extra = self._extra_observation_bounds()
+        own_lo, own_hi = objective.observation_bounds()
+        extra_lo = (*(float(x) for x in extra[0]), *own_lo) if extra is not None else tuple(own_lo)
+        extra_hi = (*(float(x) for x in extra[1]), *own_hi) if extra is not None else tuple(own_hi)
         self.observation_layout = ObservationLayout(
             n_pressure_probes=cfg.n_pressure_probes,
             speed_scale_rpm=cfg.speed_scale_rpm,
             max_speed_rpm=cfg.speed_range_rpm[1],
-            extra_low=tuple(float(x) for x in extra[0]) if extra is not None else (),
-            extra_high=tuple(float(x) for x in extra[1]) if extra is not None else (),
-            extra_names=self._extra_observation_names(),
+            extra_low=tuple(float(x) for x in extra_lo),
+            extra_high=tuple(float(x) for x in extra_hi),
+            extra_names=(*self._extra_observation_names(), *objective.observation_names),
         )
         # record the trajectory ~120 times per control step (>= 30 samples per whirl period)
         self.record_interval = cfg.control_interval / 120.0
@@ -133,6 +220,9 @@ class GFBEnv(gym.Env):
         low, high = self.observation_layout.bounds()
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self._integ: TrapezoidalIntegrator | None = None
+        #: the plant phase of :meth:`step` (one plan at a time: one thread)
+        self._plant = BatchAdvance(num_threads=1)
+        self._pending: StepPlan | None = None
         self._ep: Episode | None = None
         self._renderer: EpisodeRenderer | None = None
 
@@ -160,31 +250,28 @@ class GFBEnv(gym.Env):
     # ------------------------------------------------------------------------------------------
     # task hooks
     def _setup_episode(self, options: Mapping[str, Any]) -> EpisodeSetup:  # pragma: no cover - abstract
-        """The plant, its start and the task's record for a new episode (``options`` already checked
-        against :attr:`reset_options`; the task validates the values)."""
+        """The plant, its start, the speed command and the task's record for a new episode
+        (``options`` already checked against :attr:`reset_options`; the task validates the values)."""
         raise NotImplementedError
 
-    def _reward_terms(self, out: StepOutcome, success: bool) -> dict[str, float]:  # pragma: no cover
-        """The named terms of the reward of one control step (they sum to the reward)."""
+    def _best_bearing_number_guess(self) -> float:  # pragma: no cover - abstract
+        """A first guess of the episode's best stable bearing number (the start of the exact search)."""
         raise NotImplementedError
 
-    def _is_at_target(self, out: StepOutcome) -> bool:
-        """Whether the speed counts for a success (default: any speed)."""
-        return True
-
-    def _step_success(self, out: StepOutcome, stable: bool) -> bool:
-        """Whether this step completes a success (``stable``: no touchdown, no failure, small whirl).
-        Default (v0): ``hold_steps`` consecutive stable steps at the target."""
-        ep = self._ep
-        ep.hold = ep.hold + 1 if (stable and self._is_at_target(out)) else 0
-        return ep.hold >= self.hold_steps
-
-    def _horizon_reached(self) -> bool:
-        """Whether a fixed-horizon task ends after this step (default: no horizon; a TimeLimit truncates)."""
+    def _best_point_is_cached(self) -> bool:
+        """Whether the episode's plant has its optimum cached (fixed plants: after the first time)."""
         return False
 
+    def _unconstrained_best_point(self) -> tuple[float, float]:
+        """``(lambda_best, D_opt)`` of the episode's plant over every actual damping any gain of the
+        actuator can reach (:meth:`_damping_search_range`).  Tasks cache it where the plant is fixed."""
+        return best_stable_operating_point(
+            self.episode.model, self._damping_search_range(), self._best_bearing_number_guess()
+        )
+
     def _extra_observation_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """Bounds of task-specific observations appended after the probes (None: none)."""
+        """Bounds of task-specific observations appended after the probes, before the objective's
+        (None: none)."""
         return None
 
     def _extra_observation_names(self) -> tuple[str, ...]:
@@ -211,6 +298,44 @@ class GFBEnv(gym.Env):
     def bearing(self) -> BearingParameters:
         """Dimensional parameters of the current episode's bearing."""
         return self.episode.bearing
+
+    @property
+    def speed_command(self) -> SpeedCommand:
+        """The episode's speed command (observed: ``n_cmd``; here also ``Lambda_cmd``, ``Lambda_ref``)."""
+        return self.episode.command.command
+
+    @property
+    def damping_gain(self) -> float:
+        """The episode's hidden damping effectiveness ``g`` (actual D_W = g x commanded; for oracles)."""
+        return float(self.episode.actuator.gain)
+
+    def best_stable_operating_point(self) -> BestStablePoint:
+        """The exact best stable operating point of this episode's plant for the achievable actual
+        damping ``[g D_min, g D_max]`` (g: the episode's hidden damping effectiveness): ``lambda_best``,
+        the actual ``D_opt``, the command ``D_opt / g`` and the speed.  Cached for the episode (~0.3 s
+        for a drawn bearing, once per env for the nominal one).  For the oracle and the evaluation: it
+        reads the hidden plant."""
+        ep = self.episode
+        ce: CommandedEpisode = ep.command
+        if ce.best is not None:
+            return ce.best
+        g = ep.actuator.gain
+        dmin, dmax = self.damping_range
+        lo, hi = g * dmin, g * dmax
+        lam_u, d_u = self._unconstrained_best_point()
+        if lo <= d_u <= hi:
+            lam, d = lam_u, d_u
+        else:  # Lambda_c(D) is unimodal in log D: the best achievable damping is the nearer end
+            d = lo if d_u < lo else hi
+            lam, _ = best_stable_operating_point(ep.model, (d, d), lam_u)
+        ce.best = BestStablePoint(lam, d, d / g, ep.bearing.speed_rpm_at(lam))
+        return ce.best
+
+    def _damping_search_range(self) -> tuple[float, float]:
+        """The actual damping any gain of the actuator can reach."""
+        act, (dmin, dmax) = self.damping_actuator, self.damping_range
+        glo, ghi = act.gain_range if act.gain_range is not None else (act.gain, act.gain)
+        return glo * dmin, ghi * dmax
 
     def damping_from_action(self, a: float) -> float:
         """``D_W`` of the damping action ``a`` (:meth:`ActionMap.damping_from_action`)."""
@@ -248,6 +373,7 @@ class GFBEnv(gym.Env):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
+        self._pending = None
         setup = self._setup_episode(self._check_options(options))
         if self._integ is not None and self._integ.model is setup.model:
             self._integ.reset(setup.state, setup.bearing_number, setup.foil_damping)
@@ -299,39 +425,84 @@ class GFBEnv(gym.Env):
                 raise ValueError(f"reset options: unknown key {key!r} (allowed: {allowed})")
         return options
 
+    # ------------------------------------------------------------------------------------------
+    # the step: a public two-phase protocol (plan, the plant, finish); the stage order lives here only
     def step(self, action: Any) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict]:
-        self._check_can_step()
-        a, sanitised = self._sanitise(action)
-        lam0, bearing_number, foil_damping, kick = self._prepare_plant(a)
-        res = self._run_integrator(bearing_number, foil_damping)
-        out, trace = self._plant_outcome(lam0, res)
-        self._judge(out, trace, a, sanitised, kick)
-        obs, info = self._emit()
-        return obs, self._ep.reward, self._ep.done, False, info
+        """One control step: :meth:`plan_step`, the plant (:func:`advance_plans`), :meth:`finish_step`.
 
-    # The stages of :meth:`step`, also called one at a time over a batch of envs by
-    # :class:`~gfb_env.envs.vector.GFBVectorEnv` (each env's random draws stay in the same order).
-    def _check_can_step(self) -> None:
+        ``action``: real numbers of shape ``(2,)`` (a list, tuple or array of any real dtype); any other
+        shape or a complex / non-numeric dtype raises ``ValueError``.  NaN and out-of-range entries are
+        mended (``info["action_sanitised"]``)."""
+        plan = self.plan_step(action)
+        return self.finish_step(plan, advance_plans(self._plant, (plan,))[0])
+
+    def plan_step(self, action: Any) -> StepPlan:
+        """The first phase of a step: check and sanitise ``action``, then *command* (motor, actuator),
+        the disturbance kick, the base shocks of the step, and prepare the plant's compiled call.  The
+        env's random draws happen here and in :meth:`finish_step`, in that order, so a batch of envs
+        stepped phase by phase (:class:`~gfb_env.envs.vector.GFBVectorEnv`) draws exactly as each env
+        stepped alone.  Until :meth:`finish_step` takes the plan no other plan can be made (and no
+        snapshot taken); a plant that raised (a programming error: numerical failures are results)
+        leaves the plan pending until :meth:`reset` or :meth:`set_state`."""
         if self._integ is None or self._ep is None:
             raise RuntimeError("call reset() before step()")
         if self._ep.done:
             raise RuntimeError("the episode has ended; call reset()")
-
-    def _prepare_plant(self, a: np.ndarray) -> tuple[float, float, float, bool]:
-        """Command, kick and shocks of one step: Lambda at the start, Lambda and D_W commanded for the
-        end of the step, and whether a kick was applied (the integrator is then ready to advance)."""
+        if self._pending is not None:
+            raise RuntimeError("a step is planned and not finished: call finish_step(plan, result) first")
+        a, sanitised = self._sanitise(action)
         bearing_number, foil_damping = self._command(a)
         kick = self._maybe_kick()
-        lam0 = self._integ.bearing_number
+        integ = self._integ
+        lam0 = integ.bearing_number
         self._schedule_shocks()
-        return lam0, bearing_number, foil_damping, kick
+        call: PreparedCall | None = None
+        failure: Exception | None = None
+        try:
+            call = integ.prepare(
+                integ.tau + self.control_interval, bearing_number, foil_damping, self.record_interval,
+                self._probe_idx, DEFAULT_MAX_STEPS,
+            )  # fmt: skip
+        except NUMERICAL_FAILURES as exc:
+            failure = exc
+        plan = StepPlan(
+            action=a,
+            action_sanitised=sanitised,
+            disturbance=kick,
+            bearing_number_start=lam0,
+            bearing_number=bearing_number,
+            foil_damping=foil_damping,
+            integrator=integ,
+            call=call,
+            failure=failure,
+        )
+        self._pending = plan
+        return plan
+
+    def finish_step(self, plan: StepPlan, result: PlantResult) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """The second phase of a step: *judge* (stability, success, termination and reward, from the
+        plant's ``result`` for ``plan``: its :class:`~gfb_env.integrator.AdvanceResult` or the numerical
+        failure it raised, as :func:`advance_plans` returns it) and *emit* (the observation from the
+        sensors, and the info).  Returns Gymnasium's ``(obs, reward, terminated, truncated, info)``;
+        ``truncated`` is always False (the time limit is the ``TimeLimit`` wrapper's)."""
+        if plan is not self._pending:
+            raise ValueError("finish_step: plan is not this env's pending plan (from its plan_step)")
+        self._pending = None
+        out, trace = self._plant_outcome(plan.bearing_number_start, result)
+        self._judge(out, trace, plan.action, plan.action_sanitised, plan.disturbance)
+        obs, info = self._emit()
+        return obs, self._ep.reward, self._ep.done, False, info
 
     # ---- command ------------------------------------------------------------------------------
     def _sanitise(self, action: Any) -> tuple[np.ndarray, bool]:
-        """nan -> 0, +-inf and out-of-range -> clipped to [-1, 1]; reports whether anything changed."""
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        """Check ``action`` (real numbers of shape ``(2,)``: no reshaping, so a (1, 2) or (2, 1) array,
+        a complex or non-numeric one raises ``ValueError``), then nan -> 0, +-inf and out-of-range ->
+        clipped to [-1, 1]; reports whether anything changed."""
+        a = np.asarray(action)
         if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,), got {np.shape(action)}")
+            raise ValueError(f"action must have shape (2,), got {a.shape}")
+        if a.dtype.kind not in _REAL_KINDS:
+            raise ValueError(f"action must be real numbers, got dtype {a.dtype} ({action!r})")
         # two scalars: plain Python is ~10x cheaper than nan_to_num + clip on a 2-vector, same values
         x0, x1 = float(a[0]), float(a[1])
         c0, c1 = _clip_action(x0), _clip_action(x1)
@@ -366,22 +537,6 @@ class GFBEnv(gym.Env):
         # a discontinuity: restart the step history (deterministic, like any reset)
         integ.reset(s, integ.bearing_number, integ.foil_damping, integ.tau, integ.rotation_angle)
         return True
-
-    def _run_integrator(self, bearing_number: float, foil_damping: float) -> AdvanceResult | Exception:
-        """The integrator over one control interval (the only compiled work of a step): its result, or
-        the numerical failure it raised (judged by :meth:`_plant_outcome`)."""
-        integ = self._integ
-        try:
-            return integ.advance(
-                integ.tau + self.control_interval,
-                bearing_number,
-                foil_damping,
-                record_interval=self.record_interval,
-                record_indices=self._probe_idx,
-                raise_on_failure=False,
-            )
-        except NUMERICAL_FAILURES as exc:
-            return exc
 
     def _plant_outcome(self, lam0: float, res: AdvanceResult | Exception) -> tuple[StepOutcome, PlantTrace]:
         """What the plant did in the step (``lam0``: Lambda at its start) from the integrator's result."""
@@ -426,13 +581,15 @@ class GFBEnv(gym.Env):
 
     # ---- judge --------------------------------------------------------------------------------
     def _judge(self, out: StepOutcome, trace: PlantTrace, a: np.ndarray, sanitised: bool, kick: bool) -> None:
-        """Stability, hold, success, termination and reward of the step, written into the episode."""
-        ep = self._ep
+        """Stability, the objective's judge (success), reward and termination of the step, written into
+        the episode."""
+        ep, objective = self._ep, self.objective
+        ce: CommandedEpisode = ep.command
         stable = (
             (not out.touchdown) and (not out.solver_failure) and out.whirl_amplitude <= self.stable_amplitude
         )
-        success = self._step_success(out, stable)
-        terms = self._reward_terms(out, success)
+        success = objective.judge(ce, out, stable, ep.step, self._certified_plant())
+        terms = objective.reward_terms(ce, out)
         ep.reward_terms = terms
         ep.reward = float(sum(terms.values()))
         ep.episode_return += ep.reward
@@ -449,29 +606,36 @@ class GFBEnv(gym.Env):
             ep.termination = TerminationReason.TOUCHDOWN
         elif success:
             ep.termination = TerminationReason.SUCCESS
-        elif self._horizon_reached():
+        elif objective.horizon_reached(ep.step):
             ep.termination = TerminationReason.HORIZON
+
+    def _certified_plant(self) -> CertifiedPlant:
+        """The actual plant as the objective's certificate reads it."""
+        ep = self._ep
+        g, (dmin, dmax) = ep.actuator.gain, self.damping_range
+        known = ep.command.best is not None or self._best_point_is_cached()
+        return CertifiedPlant(
+            ep.model,
+            self._integ.state,
+            (g * dmin, g * dmax),
+            self.best_stable_operating_point if known else None,
+        )
 
     # ---- emit ---------------------------------------------------------------------------------
     def _emit(self) -> tuple[np.ndarray, dict]:
-        raw, info = self._emit_raw()
-        return self._finish_observation(raw), info
-
-    def _emit_raw(self) -> tuple[np.ndarray, dict]:
-        """The unclipped float64 observation (:meth:`_raw_observation`) and the info."""
+        """The observation (from the sensors; NaN/inf -> 0, clipped, float32) and the info."""
         raw, info = self._raw_observation(), self._info()
         if self.render_mode == "human":
             self.render()
-        return raw, info
-
-    def _observation(self) -> np.ndarray:
-        return self._finish_observation(self._raw_observation())
+        return self._finish_observation(raw), info
 
     def _finish_observation(self, raw: np.ndarray) -> np.ndarray:
-        """NaN/inf -> 0, clipped to the observation space, float32: elementwise, so the vector env
-        finishes a whole batch ``(n_envs, size)`` in one call with the same bits."""
-        obs = np.nan_to_num(raw, nan=0.0, posinf=0.0, neginf=0.0)
-        return np.clip(obs, self.observation_space.low, self.observation_space.high).astype(np.float32)
+        """NaN/inf -> 0, clipped to the observation space, float32 (elementwise)."""
+        obs = np.array(raw, dtype=np.float64)
+        # what np.nan_to_num(nan=0, posinf=0, neginf=0) gives, in two ufunc calls (a third of its cost)
+        np.copyto(obs, 0.0, where=~np.isfinite(obs))
+        np.clip(obs, self.observation_space.low, self.observation_space.high, out=obs)
+        return obs.astype(np.float32)
 
     def _raw_observation(self) -> np.ndarray:
         ep, s = self._ep, self._integ.state
@@ -490,10 +654,9 @@ class GFBEnv(gym.Env):
         obs[OBS_SPEED] = ep.bearing.speed_rpm_at(self._integ.bearing_number) / self.speed_scale_rpm
         # the actuator's position feedback: the damping it believes it sets (the gain is hidden)
         obs[OBS_DAMPING] = self.actions.action_from_damping(self._integ.foil_damping / ep.actuator.gain)
+        own = self.objective.observation(ep.command, ep.step, self.speed_scale_rpm)
         extra = self._extra_observation()
-        if extra is not None:
-            obs = np.concatenate([obs, extra])
-        return obs
+        return np.concatenate([obs, own] if extra is None else [obs, extra, own])
 
     def _add_sensor_errors(self, obs: np.ndarray, xi: float, eta: float) -> None:
         """Add what the probes and taps add to the truth (nothing, and no draw, for ideal sensors).
@@ -560,7 +723,9 @@ class GFBEnv(gym.Env):
             "whirl_amplitude": ep.whirl_amplitude,
             "whirl_amplitude_um": b.micrometres(ep.whirl_amplitude),
             "bearing_force_n": (b.newtons(float(force[0])), b.newtons(float(force[1]))),
-            "hold_steps": ep.hold,
+            # kept for the info's stability: the objective has no hold counter (its certificate's window
+            # is the config's hold_steps)
+            "hold_steps": 0,
             "action_applied": ep.last_action.copy(),
             "action_sanitised": ep.action_sanitised,
             "disturbance": ep.disturbance,
@@ -571,6 +736,9 @@ class GFBEnv(gym.Env):
         # the reward's terms, as Gymnasium's MuJoCo tasks report them (they sum to the reward)
         info.update({f"reward_{k}": v for k, v in ep.reward_terms.items()})
         info.update(ep.task_info)
+        info.update(
+            self.objective.info(ep.command, ep.step, lam, ep.termination is TerminationReason.SUCCESS)
+        )
         return info
 
     # ------------------------------------------------------------------------------------------
@@ -579,6 +747,8 @@ class GFBEnv(gym.Env):
         """Exact snapshot of the episode: integrator, episode state and the ``np_random`` state."""
         if self._integ is None or self._ep is None:
             raise RuntimeError("call reset() first")
+        if self._pending is not None:
+            raise RuntimeError("get_state: a step is planned and not finished (finish_step first)")
         return {
             "integrator": self._integ.get_state(),
             "episode": copy.deepcopy(self._ep),
@@ -596,6 +766,7 @@ class GFBEnv(gym.Env):
             self._probe_idx = ep.model.layout.midplane_probe_indices(self.n_pressure_probes)
         self._integ.set_state(copy.deepcopy(integ_state))
         self._ep = ep
+        self._pending = None
         self.np_random.bit_generator.state = copy.deepcopy(snapshot["np_random"])
 
     # ------------------------------------------------------------------------------------------
@@ -620,6 +791,11 @@ class GFBEnv(gym.Env):
 
 
 # ----------------------------------------------------------------------------------------------
+#: NumPy dtype kinds an action may have: bool, signed and unsigned integers, floats (not complex, not
+#: strings or objects: the imaginary part would be dropped silently, a string is no number)
+_REAL_KINDS = "biuf"
+
+
 def _clip_action(x: float) -> float:
     """NaN -> 0, +-inf and out-of-range -> clipped to [-1, 1] (a NaN compares unequal, so the caller's
     ``clean != raw`` reports it)."""

@@ -1,5 +1,6 @@
-"""The commanded-speed objective of the v1 tasks, shared by RunUp-v1, RunUpRandomized-v1 and
-WhirlRecovery-v1 (``docs/envs.md``, issue 11).
+"""The commanded-speed objective of the tasks, a component each task holds (``env.objective``, a
+:class:`CommandedObjective`), shared by RunUp-v1, RunUpRandomized-v1 and WhirlRecovery-v1
+(``docs/envs.md``, issues 11 and 18).
 
 * **Command**: per episode an operating speed ``n_cmd`` is commanded and observed (the observation ends
   with ``[n_cmd / 60 000 rpm, steps_left / episode_steps]``, :data:`~gfb_env.envs.units.SPEED_COMMAND`,
@@ -11,8 +12,9 @@ WhirlRecovery-v1 (``docs/envs.md``, issue 11).
   (the episode's bearing, the actual ``D_W``, the final ``Lambda``) has a linearly stable equilibrium.
 * **Success**: certified and the window-mean ``Lambda >= (1 - target_tolerance) min(Lambda_cmd,
   lambda_best)``, ``lambda_best`` the exact best stable bearing number of the episode's plant over the
-  achievable actual damping ``[g D_min, g D_max]`` (:meth:`CommandedSpeedMixin.best_stable_operating_point`,
-  computed only when the command itself was not reached).
+  achievable actual damping ``[g D_min, g D_max]``
+  (:meth:`~gfb_env.envs.base.GFBEnv.best_stable_operating_point`, computed only when the command itself
+  was not reached).
 * **Reward**: :class:`~gfb_env.envs.rewards.CommandedSpeedReward` (per-step speed progress, whirl,
   the certified bonus and the on-target bonus of a successful episode).
 * **Costs** (Safety-Gymnasium style, :class:`CostSpec`): ``info["cost"]`` per step.
@@ -20,9 +22,11 @@ WhirlRecovery-v1 (``docs/envs.md``, issue 11).
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, fields
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -31,10 +35,9 @@ from gfb_env.envs.certify import (
     Certificate,
     StabilityCertificate,
     below_best_stable_speed,
-    best_stable_operating_point,
 )
 from gfb_env.envs.config import check_in, check_int, check_nonnegative, check_positive
-from gfb_env.envs.episode import StepOutcome, TerminationReason
+from gfb_env.envs.episode import StepOutcome
 from gfb_env.envs.rewards import CommandedSpeedReward
 from gfb_env.envs.units import SPEED_COMMAND, TIME_LEFT
 from gfb_env.equilibrium import EquilibriumError
@@ -43,17 +46,16 @@ from gfb_env.model import GFBModel
 __all__ = [
     "SpeedCommand",
     "CostSpec",
-    "CommandedTask",
+    "CommandedObjective",
     "CommandedEpisode",
-    "CommandedSpeedMixin",
-    "TASK_VERSIONS",
+    "CertifiedPlant",
     "V1_TARGET_TOLERANCE",
-    "build_commanded_task",
-    "check_task_version",
+    "unconstrained_cache_key",
+    "as_component",
 ]
 
-#: the task versions a task class implements (0: the published v0 objective; 1: this module's)
-TASK_VERSIONS = (0, 1)
+#: v1 defaults (``docs/envs.md``): the relative shortfall of the window-mean speed that still counts
+V1_TARGET_TOLERANCE = 0.02
 
 
 @dataclass(frozen=True)
@@ -124,36 +126,179 @@ class CostSpec:
         }
 
 
+def as_component(name: str, cls: type, value: Any, default: Any = None) -> Any:
+    """``value`` as a ``cls``: an instance as is, a dict of its fields over ``default`` (default: the
+    class's defaults), None: ``default``.  An unknown field or another type raises ``ValueError``."""
+    base = cls() if default is None else default
+    if value is None:
+        return base
+    if isinstance(value, cls):
+        return value
+    if isinstance(value, Mapping):
+        known = {f.name for f in fields(cls)}
+        bad = sorted(set(value) - known)
+        if bad:
+            raise ValueError(f"{name}: unknown field(s) {bad} (fields: {', '.join(sorted(known))})")
+        return dataclasses.replace(base, **value)
+    raise ValueError(f"{name} must be a {cls.__name__}, a dict of its fields or None, got {value!r}")
+
+
 @dataclass(frozen=True)
-class CommandedTask:
-    """The v1 objective of one env (module docstring).
+class CommandedObjective:
+    """The commanded-speed objective of one env (module docstring): a component the task holds.
+
+    It owns the objective's part of every stage: the observation's last two entries
+    (:meth:`observation`), the per-step bookkeeping, the certificate at the horizon and the success
+    (:meth:`judge`), the reward terms (:meth:`reward_terms`), the horizon (:meth:`horizon_reached`)
+    and the info entries (:meth:`info`).  The episode's state lives in a :class:`CommandedEpisode`
+    (part of the snapshotted episode).
 
     Attributes:
         episode_steps: the fixed horizon (control steps).
-        target_tolerance: relative shortfall of the window-mean speed that still counts as reached.
-        reward: the reward weights.
         certificate: the stability certificate (``stable_amplitude``, ``hold_steps``: the window).
-        costs: the safety cost and its constraint.
+        target_tolerance: relative shortfall of the window-mean speed that still counts as reached.
+        reward: the reward weights (a :class:`~gfb_env.envs.rewards.CommandedSpeedReward` or a dict of
+            its fields).
+        costs: the safety cost and its constraint (a :class:`CostSpec` or a dict of its fields).
     """
 
     episode_steps: int
-    target_tolerance: float
-    reward: CommandedSpeedReward
     certificate: StabilityCertificate
+    target_tolerance: float = V1_TARGET_TOLERANCE
+    reward: CommandedSpeedReward = field(default_factory=CommandedSpeedReward)
     costs: CostSpec = field(default_factory=CostSpec)
+
+    #: the names of the objective's observation entries (they end the observation)
+    observation_names: ClassVar[tuple[str, str]] = (SPEED_COMMAND, TIME_LEFT)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "episode_steps", check_int("episode_steps", self.episode_steps, 1, 100_000))
+        if not isinstance(self.certificate, StabilityCertificate):
+            raise ValueError(f"certificate must be a StabilityCertificate, got {self.certificate!r}")
         object.__setattr__(
             self,
             "target_tolerance",
             check_in("target_tolerance", self.target_tolerance, 0.0, 0.5, lo_open=True, hi_open=True),
         )
+        object.__setattr__(self, "reward", as_component("reward", CommandedSpeedReward, self.reward))
+        object.__setattr__(self, "costs", as_component("costs", CostSpec, self.costs))
         if self.certificate.hold_steps > self.episode_steps:
             raise ValueError(
                 f"hold_steps ({self.certificate.hold_steps}) must not exceed "
                 f"episode_steps ({self.episode_steps})"
             )
+
+    # ---- observation --------------------------------------------------------------------------
+    def observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of :meth:`observation`: both entries in [0, 1]."""
+        return np.zeros(2), np.ones(2)
+
+    def observation(self, ce: CommandedEpisode, step: int, speed_scale_rpm: float) -> np.ndarray:
+        """``[n_cmd / speed_scale_rpm, steps_left / episode_steps]`` after ``step`` control steps."""
+        steps = self.episode_steps
+        return np.array([ce.command.speed_rpm / speed_scale_rpm, (steps - step) / steps])
+
+    # ---- judge --------------------------------------------------------------------------------
+    def judge(
+        self,
+        ce: CommandedEpisode,
+        out: StepOutcome,
+        stable: bool,
+        step: int,
+        plant: CertifiedPlant,
+    ) -> bool:
+        """Book one control step (``step``: steps taken before it; ``stable``: no touchdown, no failure,
+        small whirl) into ``ce``; at the horizon certify ``plant`` and decide the success (returned)."""
+        n = self.certificate.hold_steps
+        amp = out.whirl_amplitude if not (out.touchdown or out.solver_failure) else math.inf
+        ce.stable = stable
+        p = ce.command.progress(out.bearing_number)
+        for lst, v in ((ce.amplitudes, amp), (ce.bearing_numbers, out.bearing_number), (ce.progresses, p)):
+            lst.append(float(v))
+            del lst[:-n]
+        ce.costs = self.costs.terms(out)
+        ce.episode_cost += ce.costs["cost"]
+        if step + 1 < self.episode_steps:
+            return False
+        if out.touchdown or out.solver_failure:
+            ce.certificate = Certificate(False, "not_judged", math.nan)
+            return False
+        ce.certificate = self.certificate.judge(
+            ce.amplitudes, plant.model, out.bearing_number, out.foil_damping, plant.state
+        )
+        ce.success = ce.certificate.certified and self._speed_reached(ce, plant)
+        return ce.success
+
+    def _speed_reached(self, ce: CommandedEpisode, plant: CertifiedPlant) -> bool:
+        """Window-mean Lambda >= (1 - tol) min(Lambda_cmd, lambda_best), exactly.  Only when the command
+        itself was not reached does lambda_best matter: then ``mean >= (1 - tol) lambda_best`` iff
+        ``Lambda* = mean / (1 - tol)`` is NOT below the best stable speed, i.e. iff no achievable actual
+        damping makes the equilibrium at Lambda* stable: one :func:`below_best_stable_speed` (~0.1 s),
+        or the episode's best point where it is already known (cached, or a fixed plant's)."""
+        need = 1.0 - self.target_tolerance
+        mean = float(np.mean(ce.bearing_numbers))
+        if mean >= need * ce.command.bearing_number:
+            return True
+        try:
+            if plant.best_point is not None:
+                best = plant.best_point().bearing_number
+                return mean >= need * min(ce.command.bearing_number, best)
+            return not below_best_stable_speed(
+                plant.model, mean / need, plant.achievable_damping, plant.state
+            )
+        except _BEST_POINT_FAILURES:
+            # never crash a step: without the optimum only the command counts (not seen on the tasks'
+            # parameter boxes; a test forces it)
+            return False
+
+    def horizon_reached(self, steps_taken: int) -> bool:
+        """Whether the episode ends (``terminated``) after ``steps_taken`` control steps."""
+        return steps_taken >= self.episode_steps
+
+    def reward_terms(self, ce: CommandedEpisode, out: StepOutcome) -> dict[str, float]:
+        """The reward's named terms of the step just judged (they sum to the reward)."""
+        cert = ce.certificate
+        mean_p = float(np.mean(ce.progresses)) if (cert is not None and cert.certified) else None
+        return self.reward.terms(out, ce.stable, ce.progresses[-1], mean_p, ce.success)
+
+    # ---- emit ---------------------------------------------------------------------------------
+    def info(self, ce: CommandedEpisode, steps_taken: int, bearing_number: float, success: bool) -> dict:
+        """The objective's entries of ``info``."""
+        cert = ce.certificate
+        return {
+            "speed_command_rpm": ce.command.speed_rpm,
+            "speed_command_bearing_number": ce.command.bearing_number,
+            "reference_bearing_number": ce.command.reference_bearing_number,
+            "episode_steps": self.episode_steps,
+            "steps_left": self.episode_steps - steps_taken,
+            "speed_progress": ce.progresses[-1] if ce.progresses else ce.command.progress(bearing_number),
+            "certified": bool(cert is not None and cert.certified),
+            "certification": cert.reason if cert is not None else None,
+            # None where not computed (a NaN would make equal infos compare unequal)
+            "growth_rate": cert.growth_rate
+            if (cert is not None and math.isfinite(cert.growth_rate))
+            else None,
+            "is_success": success,
+            "episode_cost": ce.episode_cost,
+            **ce.costs,
+        }
+
+
+@dataclass(frozen=True)
+class CertifiedPlant:
+    """What the certificate and the success test read of the actual (hidden) plant at the horizon.
+
+    Attributes:
+        model: the episode's plant; state: its state at the horizon.
+        achievable_damping: ``[g D_min, g D_max]``, the actual damping the actuator can set.
+        best_point: the episode's exact best stable point where it is known or cheap (a fixed plant's,
+            cached), else None (the success is then decided by one stability test).
+    """
+
+    model: GFBModel
+    state: np.ndarray
+    achievable_damping: tuple[float, float]
+    best_point: Callable[[], BestStablePoint] | None
 
 
 @dataclass
@@ -190,237 +335,6 @@ class CommandedEpisode:
 _BEST_POINT_FAILURES = (RuntimeError, ValueError, EquilibriumError, FloatingPointError, np.linalg.LinAlgError)
 
 
-def check_task_version(v: Any) -> int:
-    if isinstance(v, bool) or v not in TASK_VERSIONS:
-        raise ValueError(f"task_version must be one of {TASK_VERSIONS}, got {v!r}")
-    return int(v)
-
-
-class CommandedSpeedMixin:
-    """The v1 objective on top of a :class:`~gfb_env.envs.base.GFBEnv` task (put it first in the bases).
-
-    The task sets ``self.task_version`` *before* ``GFBEnv.__init__`` (the observation space depends
-    on it), ``self.commanded`` (a :class:`CommandedTask`, or None for v0) after it, and puts a
-    :class:`CommandedEpisode` into ``EpisodeSetup.command``; everything else (observation, judge, reward,
-    costs, info) is here.  With ``self.commanded = None`` every hook defers to the task's v0 behaviour."""
-
-    commanded: CommandedTask | None = None
-
-    # ---- observation ----------------------------------------------------------------------------
-    def _extra_observation_bounds(self):
-        base = super()._extra_observation_bounds()
-        if getattr(self, "task_version", 0) != 1:
-            return base
-        lo, hi = (np.zeros(0), np.zeros(0)) if base is None else (np.asarray(base[0]), np.asarray(base[1]))
-        return np.concatenate([lo, [0.0, 0.0]]), np.concatenate([hi, [1.0, 1.0]])
-
-    def _extra_observation_names(self) -> tuple[str, ...]:
-        base = super()._extra_observation_names()
-        if getattr(self, "task_version", 0) != 1:
-            return base
-        return (*base, SPEED_COMMAND, TIME_LEFT)
-
-    def _extra_observation(self):
-        base = super()._extra_observation()
-        if self.commanded is None:
-            return base
-        ep = self.episode
-        steps = self.commanded.episode_steps
-        own = np.array([ep.command.command.speed_rpm / self.speed_scale_rpm, (steps - ep.step) / steps])
-        return own if base is None else np.concatenate([base, own])
-
-    # ---- judge ----------------------------------------------------------------------------------
-    def _step_success(self, out: StepOutcome, stable: bool) -> bool:
-        if self.commanded is None:
-            return super()._step_success(out, stable)
-        ep, task = self.episode, self.commanded
-        ce: CommandedEpisode = ep.command
-        n = task.certificate.hold_steps
-        amp = out.whirl_amplitude if not (out.touchdown or out.solver_failure) else math.inf
-        ce.stable = stable
-        p = ce.command.progress(out.bearing_number)
-        for lst, v in ((ce.amplitudes, amp), (ce.bearing_numbers, out.bearing_number), (ce.progresses, p)):
-            lst.append(float(v))
-            del lst[:-n]
-        ce.costs = task.costs.terms(out)
-        ce.episode_cost += ce.costs["cost"]
-        if ep.step + 1 < task.episode_steps:
-            return False
-        if out.touchdown or out.solver_failure:
-            ce.certificate = Certificate(False, "not_judged", math.nan)
-            return False
-        ce.certificate = task.certificate.judge(
-            ce.amplitudes, ep.model, out.bearing_number, out.foil_damping, self._integ.state
-        )
-        ce.success = ce.certificate.certified and self._speed_reached(ce)
-        return ce.success
-
-    def _speed_reached(self, ce: CommandedEpisode) -> bool:
-        """Window-mean Lambda >= (1 - tol) min(Lambda_cmd, lambda_best), exactly.  Only when the command
-        itself was not reached does lambda_best matter: then ``mean >= (1 - tol) lambda_best`` iff
-        ``Lambda* = mean / (1 - tol)`` is NOT below the best stable speed, i.e. iff no achievable actual
-        damping makes the equilibrium at Lambda* stable: one :func:`below_best_stable_speed` (~0.1 s),
-        or the episode's best point where it is already known (cached, or a fixed plant's)."""
-        need = 1.0 - self.commanded.target_tolerance
-        mean = float(np.mean(ce.bearing_numbers))
-        if mean >= need * ce.command.bearing_number:
-            return True
-        try:
-            if ce.best is not None or self._best_point_is_cached():
-                best = self.best_stable_operating_point().bearing_number
-                return mean >= need * min(ce.command.bearing_number, best)
-            g, (dmin, dmax) = self.episode.actuator.gain, self.damping_range
-            return not below_best_stable_speed(
-                self.episode.model, mean / need, (g * dmin, g * dmax), self._integ.state
-            )
-        except _BEST_POINT_FAILURES:
-            # never crash a step: without the optimum only the command counts (not seen on the tasks'
-            # parameter boxes; a test forces it)
-            return False
-
-    def _best_point_is_cached(self) -> bool:
-        """Whether the episode's plant has its optimum cached (fixed plants: after the first time)."""
-        return False
-
-    def _horizon_reached(self) -> bool:
-        if self.commanded is None:
-            return super()._horizon_reached()
-        return self.episode.step >= self.commanded.episode_steps
-
-    def _commanded_reward_terms(self, out: StepOutcome) -> dict[str, float]:
-        ce: CommandedEpisode = self.episode.command
-        cert = ce.certificate
-        mean_p = float(np.mean(ce.progresses)) if (cert is not None and cert.certified) else None
-        return self.commanded.reward.terms(out, ce.stable, ce.progresses[-1], mean_p, ce.success)
-
-    # ---- the episode's command and hidden plant (public, per episode) ---------------------------
-    @property
-    def speed_command(self) -> SpeedCommand:
-        """The episode's speed command (observed: ``n_cmd``; here also ``Lambda_cmd``, ``Lambda_ref``)."""
-        ce = self.episode.command
-        if ce is None:
-            raise AttributeError("speed_command: only the v1 (commanded-speed) tasks have one")
-        return ce.command
-
-    @property
-    def damping_gain(self) -> float:
-        """The episode's hidden damping effectiveness ``g`` (actual D_W = g x commanded; for oracles)."""
-        return float(self.episode.actuator.gain)
-
-    # ---- the episode's hidden optimum -------------------------------------------------------------
-    def best_stable_operating_point(self) -> BestStablePoint:
-        """The exact best stable operating point of this episode's plant for the achievable actual
-        damping ``[g D_min, g D_max]`` (g: the episode's hidden damping effectiveness): ``lambda_best``,
-        the actual ``D_opt``, the command ``D_opt / g`` and the speed.  Cached for the episode (~0.3 s
-        for a drawn bearing, once per env for the nominal one).  For the oracle and the evaluation: it
-        reads the hidden plant."""
-        ep = self.episode
-        ce: CommandedEpisode | None = ep.command
-        if ce is not None and ce.best is not None:
-            return ce.best
-        g = ep.actuator.gain
-        dmin, dmax = self.damping_range
-        lo, hi = g * dmin, g * dmax
-        lam_u, d_u = self._unconstrained_best_point()
-        if lo <= d_u <= hi:
-            lam, d = lam_u, d_u
-        else:  # Lambda_c(D) is unimodal in log D: the best achievable damping is the nearer end
-            d = lo if d_u < lo else hi
-            lam, _ = best_stable_operating_point(ep.model, (d, d), lam_u)
-        best = BestStablePoint(lam, d, d / g, ep.bearing.speed_rpm_at(lam))
-        if ce is not None:
-            ce.best = best
-        return best
-
-    def _unconstrained_best_point(self) -> tuple[float, float]:
-        """``(lambda_best, D_opt)`` of the episode's plant over every actual damping any gain of the
-        actuator can reach (:meth:`_damping_search_range`).  Tasks cache it where the plant is fixed."""
-        return best_stable_operating_point(
-            self.episode.model, self._damping_search_range(), self._best_bearing_number_guess()
-        )
-
-    def _damping_search_range(self) -> tuple[float, float]:
-        act, (dmin, dmax) = self.damping_actuator, self.damping_range
-        glo, ghi = act.gain_range if act.gain_range is not None else (act.gain, act.gain)
-        return glo * dmin, ghi * dmax
-
-    def _best_bearing_number_guess(self) -> float:  # pragma: no cover - task hook
-        raise NotImplementedError
-
-    # ---- info -----------------------------------------------------------------------------------
-    def _info(self) -> dict:
-        info = super()._info()
-        if self.commanded is None:
-            return info
-        ep = self.episode
-        ce: CommandedEpisode = ep.command
-        cert = ce.certificate
-        info.update(
-            {
-                "speed_command_rpm": ce.command.speed_rpm,
-                "speed_command_bearing_number": ce.command.bearing_number,
-                "reference_bearing_number": ce.command.reference_bearing_number,
-                "episode_steps": self.commanded.episode_steps,
-                "steps_left": self.commanded.episode_steps - ep.step,
-                "speed_progress": ce.progresses[-1]
-                if ce.progresses
-                else ce.command.progress(info["bearing_number"]),
-                "certified": bool(cert is not None and cert.certified),
-                "certification": cert.reason if cert is not None else None,
-                # None where not computed (a NaN would make equal infos compare unequal)
-                "growth_rate": cert.growth_rate
-                if (cert is not None and math.isfinite(cert.growth_rate))
-                else None,
-                "is_success": ep.termination is TerminationReason.SUCCESS,
-                "episode_cost": ce.episode_cost,
-                **ce.costs,
-            }
-        )
-        return info
-
-
 def unconstrained_cache_key(model: GFBModel, search: tuple[float, float]) -> tuple:
     """Cache key of a fixed plant's unconstrained optimum (grid, K_W, bearing, search range)."""
     return (str(model.grid), model.foil_stiffness, tuple(sorted(model.bearing.as_dict().items())), search)
-
-
-#: v1 defaults (``docs/envs.md``): the relative shortfall of the window-mean speed that still counts
-V1_TARGET_TOLERANCE = 0.02
-
-
-def build_commanded_task(
-    task_version: int,
-    *,
-    episode_steps: int | None,
-    default_episode_steps: int,
-    target_tolerance: float | None,
-    speed_weight: float | None,
-    whirl_penalty: float,
-    success_bonus: float,
-    touchdown_penalty: float | None,
-    stable_amplitude: float,
-    hold_steps: int,
-    costs: CostSpec,
-    v1_only: dict[str, Any],
-) -> CommandedTask | None:
-    """The :class:`CommandedTask` of ``task_version`` 1 (None for 0, which refuses every v1-only
-    argument that is not None: ``episode_steps``, ``speed_weight`` and the names in ``v1_only``)."""
-    if task_version == 0:
-        given = {"episode_steps": episode_steps, "speed_weight": speed_weight, **v1_only}
-        bad = [k for k, v in given.items() if v is not None]
-        if bad:
-            raise ValueError(f"{', '.join(bad)}: only for task_version=1 (the commanded-speed tasks)")
-        return None
-    reward = CommandedSpeedReward(
-        speed_weight=0.1 if speed_weight is None else speed_weight,
-        whirl_penalty=whirl_penalty,
-        success_bonus=success_bonus,
-        touchdown_penalty=100.0 if touchdown_penalty is None else touchdown_penalty,
-    )
-    return CommandedTask(
-        episode_steps=default_episode_steps if episode_steps is None else episode_steps,
-        target_tolerance=V1_TARGET_TOLERANCE if target_tolerance is None else target_tolerance,
-        reward=reward,
-        certificate=StabilityCertificate(stable_amplitude, hold_steps),
-        costs=costs,
-    )

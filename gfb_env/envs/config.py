@@ -121,17 +121,17 @@ class EnvConfig:
         motor: the drive (:class:`~gfb_env.machine.Motor` or a dict of its fields); default: a
             ``Motor(max_acceleration_rpm_per_s)``.
         damping_actuator: lag, rate limit and effectiveness gain between the commanded and the actual
-            D_W (:class:`~gfb_env.machine.FoilDampingActuator` or a dict); default ideal (v0: the
+            D_W (:class:`~gfb_env.machine.FoilDampingActuator` or a dict); default ideal (the
             command is the plant's D_W at the step's end).
         proximity_probes: the X/Y displacement probes (:class:`~gfb_env.machine.ProximityProbes` or a
-            dict); default ideal (v0: exact positions, velocities and envelopes).
+            dict); default ideal (exact positions, velocities and envelopes).
         pressure_taps: the midplane pressure taps (:class:`~gfb_env.machine.PressureTaps` or a dict);
-            default ideal (v0: exact pressures).
+            default ideal (exact pressures).
         shock_arrivals: random base shocks (:class:`~gfb_env.machine.ShockArrivals` or a dict), half-sine
-            pulses through the rotor equations; default none (v0).  Exclusive with the legacy velocity
+            pulses through the rotor equations; default none.  Exclusive with the legacy velocity
             kick (``disturbance_probability``): a task uses one or the other.
         rotor_balance: the rotor's residual unbalance, an ISO balance grade drawn per episode
-            (:class:`~gfb_env.machine.RotorBalance` or a dict); default perfectly balanced (v0).
+            (:class:`~gfb_env.machine.RotorBalance` or a dict); default perfectly balanced.
     """
 
     grid: Grid = field(default_factory=lambda: Grid.parse(DEFAULT_GRID))

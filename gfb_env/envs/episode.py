@@ -25,7 +25,7 @@ class TerminationReason(enum.StrEnum):
     TOUCHDOWN = "touchdown"
     #: the integrator could not continue (step below its minimum); counted like a touchdown.
     SOLVER_FAILURE = "solver_failure"
-    #: a fixed-horizon (v1) task reached its last step without success (``info["certified"]`` says why).
+    #: the episode reached its fixed horizon without success (``info["certified"]`` says why).
     HORIZON = "horizon"
 
 
@@ -58,8 +58,8 @@ class EpisodeSetup:
     ``task`` is the task's frozen record of the episode (e.g. its target); ``info`` the entries it adds
     to every ``info`` dict.  ``foil_damping`` is the plant's actual D_W at the start; ``damping_gain``
     fixes this episode's actuator effectiveness (None: the actuator's own, or its draw from
-    ``gain_range``).  ``command``: the per-episode state of a commanded-speed (v1) task
-    (:class:`~gfb_env.envs.commanded.CommandedEpisode`), None for v0."""
+    ``gain_range``).  ``command``: the objective's per-episode state
+    (:class:`~gfb_env.envs.commanded.CommandedEpisode`: the speed command)."""
 
     model: GFBModel
     state: np.ndarray
@@ -97,7 +97,7 @@ class Episode:
         task: the task's frozen record (target, draw, ...); ``task_info`` its entries of ``info``.
         position_scale, velocity_scale: physical-to-observation factors of this bearing
             (``C / C_nom`` and ``(C / T) / (C_nom / T_nom)``).
-        step: control steps taken; hold: consecutive stable steps at the target.
+        step: control steps taken.
         termination: why it ended (``None`` while running).
         xi_range, eta_range: journal extremes over the last control step (NaN before the first).
         whirl_amplitude, min_film_thickness: of the last control step.
@@ -114,7 +114,8 @@ class Episode:
             itself lives in the integrator (part of its snapshot).
         shocks: base shocks that started in the last control step (:class:`~gfb_env.machine.ShockEvent`).
         shock_count: base shocks since reset.
-        command: the commanded-speed (v1) task's state of the episode (None for v0).
+        command: the commanded-speed objective's state of the episode
+            (:class:`~gfb_env.envs.commanded.CommandedEpisode`).
     """
 
     model: GFBModel
@@ -127,7 +128,6 @@ class Episode:
     orbit: tuple[np.ndarray, np.ndarray]
     history: History
     step: int = 0
-    hold: int = 0
     termination: TerminationReason | None = None
     xi_range: tuple[float, float] = (math.nan, math.nan)
     eta_range: tuple[float, float] = (math.nan, math.nan)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, fields
 from gfb_env.envs.config import check_nonnegative
 from gfb_env.envs.episode import StepOutcome
 
-__all__ = ["RunUpReward", "WhirlRecoveryReward", "CommandedSpeedReward", "WHIRL_AMPLITUDE_CAP"]
+__all__ = ["CommandedSpeedReward", "WHIRL_AMPLITUDE_CAP"]
 
 #: The whirl term saturates at 1.5 C: larger orbits touch down anyway, and the touchdown penalty says so.
 WHIRL_AMPLITUDE_CAP = 1.5
@@ -25,76 +25,13 @@ class _Weights:
 
 
 @dataclass(frozen=True)
-class RunUpReward(_Weights):
-    """``r = progress + time + whirl + success + touchdown`` with
-
-    * ``progress = progress_weight * (Phi(Lambda_end) - Phi(Lambda_start))``, the potential
-      ``Phi = -|Lambda - Lambda_t| / (Lambda_t - Lambda_0)`` (a full run-up earns ``progress_weight``);
-    * ``time = -time_penalty`` per control step;
-    * ``whirl = -whirl_penalty * min(A, 1.5)`` with the whirl amplitude A (units of C);
-    * ``success = +success_bonus`` on success; ``touchdown = -touchdown_penalty`` on touchdown or solver
-      failure (more than whirling to the time limit costs).
-    """
-
-    progress_weight: float = 10.0
-    time_penalty: float = 0.02
-    whirl_penalty: float = 0.5
-    success_bonus: float = 50.0
-    touchdown_penalty: float = 200.0
-
-    def terms(
-        self, out: StepOutcome, success: bool, start_bearing_number: float, target_bearing_number: float
-    ) -> dict[str, float]:
-        span = target_bearing_number - start_bearing_number
-
-        def potential(lam: float) -> float:
-            return -abs(lam - target_bearing_number) / span
-
-        return {
-            "progress": self.progress_weight
-            * (potential(out.bearing_number) - potential(out.bearing_number_start)),
-            "time": -self.time_penalty,
-            "whirl": -self.whirl_penalty * min(out.whirl_amplitude, WHIRL_AMPLITUDE_CAP),
-            "success": self.success_bonus if success else 0.0,
-            "touchdown": -self.touchdown_penalty if (out.touchdown or out.solver_failure) else 0.0,
-        }
-
-
-@dataclass(frozen=True)
-class WhirlRecoveryReward(_Weights):
-    """``r = time + whirl + speed_loss + success + touchdown`` with
-
-    * ``time = -time_penalty``; ``whirl = -whirl_penalty * min(A, 1.5)``;
-    * ``speed_loss = -speed_loss_weight * max(0, Lambda_w - Lambda) / Lambda_w`` (speed given up);
-    * ``success = success_bonus * Lambda / Lambda_w`` on success (the speed kept counts);
-    * ``touchdown = -touchdown_penalty`` on touchdown or solver failure.
-    """
-
-    time_penalty: float = 0.02
-    whirl_penalty: float = 0.5
-    speed_loss_weight: float = 2.0
-    success_bonus: float = 50.0
-    touchdown_penalty: float = 200.0
-
-    def terms(self, out: StepOutcome, success: bool, whirl_bearing_number: float) -> dict[str, float]:
-        lam_w = whirl_bearing_number
-        return {
-            "time": -self.time_penalty,
-            "whirl": -self.whirl_penalty * min(out.whirl_amplitude, WHIRL_AMPLITUDE_CAP),
-            "speed_loss": -self.speed_loss_weight * max(0.0, lam_w - out.bearing_number) / lam_w,
-            "success": self.success_bonus * out.bearing_number / lam_w if success else 0.0,
-            "touchdown": -self.touchdown_penalty if (out.touchdown or out.solver_failure) else 0.0,
-        }
-
-
-@dataclass(frozen=True)
 class CommandedSpeedReward(_Weights):
-    """The v1 reward: ``r = speed + whirl + certified_speed + touchdown`` with the speed progress
-    ``p(Lambda) = clip((Lambda - Lambda_ref) / (Lambda_cmd - Lambda_ref), 0, 1)`` and
+    """The reward of the commanded-speed objective: ``r = speed + whirl + certified_speed + touchdown``
+    with the speed progress ``p(Lambda) = clip((Lambda - Lambda_ref) / (Lambda_cmd - Lambda_ref), 0, 1)`` and
 
     * ``speed = speed_weight * p(Lambda)`` per step, only while the whirl amplitude is below the stable
       threshold (running fast while whirling earns nothing);
-    * ``whirl = -whirl_penalty * min(A, 1.5)`` as v0;
+    * ``whirl = -whirl_penalty * min(A, 1.5)`` with the whirl amplitude A (units of C);
     * ``certified_speed = success_bonus * mean(p)`` over the last ``hold_steps`` steps, paid once at the
       horizon and only if the end is certified stable (:mod:`gfb_env.envs.certify`);
     * ``on_target = target_bonus`` once at the horizon if the episode succeeded: certified and the

@@ -1,21 +1,22 @@
-"""``gfb_env/RunUpRandomized-v0``: RunUp with a bearing drawn per episode (clearance, foil stiffness,
-load) and disturbance kicks; the target is relative to the best stable speed of the drawn bearing."""
+"""``gfb_env/RunUpRandomized-v1``: RunUp-v1 with a bearing drawn per episode (clearance, foil stiffness,
+load) and the speed command in absolute rpm."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
 from gfb_env.envs._data import randomized_task_table
-from gfb_env.envs.base import DEFAULT_GRID, EpisodeSetup, viscoelastic_model
-from gfb_env.envs.commanded import CommandedEpisode, CommandedSpeedMixin, SpeedCommand
+from gfb_env.envs.base import EpisodeSetup, GFBEnv, viscoelastic_model
+from gfb_env.envs.commanded import CommandedEpisode, SpeedCommand
 from gfb_env.envs.config import check_bool, check_in, check_range
 from gfb_env.envs.run_up import RunUpEnv, RunUpTarget
 from gfb_env.equilibrium import find_equilibrium
-from gfb_env.model import Grid
+from gfb_env.model import GFBModel
 from gfb_env.params import BearingParameters
 
 __all__ = ["RunUpRandomizedEnv", "BestStableSpeedTable", "RandomizedRunUpTarget", "COMMAND_RANGE_RPM"]
@@ -69,11 +70,13 @@ class BestStableSpeedTable:
 
 
 class RunUpRandomizedEnv(RunUpEnv):
-    """RunUp-v0 on a bearing drawn per episode: a fixed schedule cannot be right for every draw.
+    """RunUp-v1 on a bearing drawn per episode: a fixed schedule cannot be right for every draw.
 
     ## Description
 
-    As ``gfb_env/RunUp-v0``, but every ``reset`` draws (from ``np_random``, uniformly):
+    As ``gfb_env/RunUp-v1`` (the instrumented machine, the hidden damping gain g in [0.316, 3.16], the
+    observed command, the horizon of 250 steps, the certificate, the reward and the costs), but every
+    ``reset`` draws (from ``np_random``, uniformly):
 
     * the radial clearance ``C`` in ``clearance_range_m`` (default 40-60 um around the nominal 50 um;
       the paper stresses that C is poorly known).  C changes M (~C^5), the time scale T (~C^-2) and
@@ -83,69 +86,42 @@ class RunUpRandomizedEnv(RunUpEnv):
     * the external static load per bearing ``F_L`` in ``load_range_n`` (15-25 N, nominal 20.25 N; the
       table spans 10-30 N).
 
-    The target is ``target_fraction`` (0.95) of the best stable speed of the drawn bearing,
-    ``lambda_best = max_D Lambda_c(D)``, read from a trilinear interpolant of a precomputed 5 x 3 x 3
-    table on the default grid (``data/task_constants.json``), capped at 98 % of the top speed.
-    The drawn parameters, and so the target, are hidden by default; ``observe_parameters=True``
-    appends them to the observation (for ablations).
+    The command ``n_cmd`` is drawn in absolute rpm, uniformly in ``command_range_rpm`` (default
+    :data:`COMMAND_RANGE_RPM`, 40 000-60 000 rpm, the same for every draw, so it does not reveal the
+    bearing; about 80 % of the commands lie above the drawn plant's best stable speed, measured on 100
+    draws).  The hidden optimum is exact per episode (:meth:`best_stable_operating_point`, ~0.8 s, for
+    oracles and evaluation); the env decides success without it, by one stability test at
+    ``mean / (1 - tol)`` (~0.15 s, only when a certified episode ended below its command).  The
+    trilinear table of ``lambda_best(C, f_K, F_L)`` (``data/task_constants.json``) is only the starting
+    guess of the search (it is +1.1 % off on average).  The drawn parameters are hidden by default;
+    ``observe_parameters=True`` appends them to the observation before the command entries (for
+    ablations): ``C / 50 um`` [0, 2], ``f_K`` [0, 2], ``F_L / 20.25 N`` [0, 2].
 
-    ## Action Space
+    ## Action Space, Observation Space, Rewards, Episode End
 
-    As RunUp-v0 (the motor limit is in rpm/s, so its dLambda/dtau depends on the drawn C).
-
-    ## Observation Space
-
-    As RunUp-v0 (size ``8 + n_pressure_probes``).  Sensors measure physical quantities, scaled by the
-    *nominal* bearing (position / 50 um, velocity / (50 um / T_nom), speed / 60 000 rpm), so the
-    observation does not reveal C directly.  With ``observe_parameters=True`` three more entries:
-    ``C / 50 um`` [0, 2], ``f_K`` [0, 2], ``F_L / 20.25 N`` [0, 2].
-
-    ## Rewards
-
-    As RunUp-v0 with ``Lambda_t = target_fraction * lambda_best(drawn bearing)`` and ``Lambda_0`` the
-    drawn bearing's Lambda at ``start_speed_rpm``: the progress reward is relative to the best stable
-    speed of the drawn bearing (+10 for a full run-up whatever the draw).
+    As RunUp-v1 (the motor limit is in rpm/s, so its dLambda/dtau depends on the drawn C; the
+    observation is scaled by the *nominal* bearing, so it does not reveal C directly).
 
     ## Starting State
 
     The static equilibrium of the drawn bearing at ``start_speed_rpm`` (default: 85 % of the lowest
     speed at which any bearing of the ranges loses stability at the worst damping, so the start is
-    stable for every draw and damping), random D_W and a small random velocity as RunUp-v0.
-
-    ## Episode End
-
-    As RunUp-v0 (success / touchdown / solver_failure; truncated after 250 control steps).
+    stable for every draw and damping), the damping command and a small random velocity as RunUp-v1.
 
     ## Arguments
 
-    ``gymnasium.make("gfb_env/RunUpRandomized-v0", clearance_range_m=(40e-6, 60e-6),
+    ``gymnasium.make("gfb_env/RunUpRandomized-v1", clearance_range_m=(40e-6, 60e-6),
     stiffness_factor_range=(0.7, 1.4), load_range_n=(15, 25), observe_parameters=False,
-    start_speed_rpm=None, **runup)`` with the RunUp-v0 and base arguments (``target_fraction``,
-    reward weights, ``grid``, ``disturbance_probability=0.1``, ...).  The ranges must lie inside the
-    table's.  ``reset(options={"clearance_m": ..., "stiffness_factor": ..., "load_n": ...})`` fixes a draw.
-
-    ``reset(options=...)`` accepts exactly these keys, each inside its range (``ValueError`` otherwise).
-
-    ## v1 (``gfb_env/RunUpRandomized-v1``, ``task_version=1``; ``docs/envs.md``)
-
-    As RunUp-v1 (hidden damping gain, observed command, horizon 250, certificate, reward, costs) on the
-    drawn bearing.  The command ``n_cmd`` is drawn in absolute rpm, uniformly in ``command_range_rpm``
-    (default :data:`COMMAND_RANGE_RPM`, 40 000-60 000 rpm, the same for every draw, so it does not reveal
-    the bearing; about 80 % of the commands lie above the drawn plant's best stable speed, measured on 100
-    draws).  The hidden optimum is exact per episode (:meth:`best_stable_operating_point`, ~0.8 s, for
-    oracles and evaluation); the env decides success without it, by one stability test at
-    ``mean / (1 - tol)`` (~0.15 s, only when a certified episode ended below its command).  The
-    trilinear table is only the starting guess of the search (it is +1.1 % off on average).  The reset options
-    fix the draw as in v0; ``observe_parameters=True`` puts its three entries before the command.
+    start_speed_rpm=None, command_range_rpm=(40000, 60000), **runup)`` with RunUp-v1's ``episode_steps``,
+    ``target_tolerance``, ``reward``, ``costs`` and the base arguments.  The ranges must lie inside the
+    table's.  ``reset(options={"clearance_m": ..., "stiffness_factor": ..., "load_n": ...})`` fixes a
+    draw: exactly these keys, each inside its range (``ValueError`` otherwise).
 
     ## Version History
 
-    * v0: initial version.
-    * v1 (issue 10): v0 on the instrumented machine with a damping gain in [0.5, 2].  Redefined in place
-      by issue 11 (no benchmark result had been published on v1): gain in [0.316, 3.16], the commanded
-      speed in absolute rpm, the fixed horizon, the certificate, the exact best stable point, costs;
-      then the on-target bonus (25 on success) added to the reward and the command range moved from
-      34 000-44 000 to 40 000-60 000 rpm (most commands above the best stable speed).
+    * v0: the drawn bearing on an ideal machine with a table target; retired (issue 18, ``CHANGELOG.md``).
+    * v1 (issues 10, 11): as RunUp-v1 on the drawn bearing; the command range moved from 34 000-44 000
+      to 40 000-60 000 rpm (most commands above the best stable speed).
     """
 
     def __init__(
@@ -155,10 +131,11 @@ class RunUpRandomizedEnv(RunUpEnv):
         load_range_n: tuple[float, float] = (15.0, 25.0),
         observe_parameters: bool = False,
         start_speed_rpm: float | None = None,
-        command_range_rpm: tuple[float, float] | None = None,
-        grid: str | Grid = DEFAULT_GRID,
-        **kwargs,
+        command_range_rpm: tuple[float, float] = COMMAND_RANGE_RPM,
+        **kwargs: Any,
     ):
+        if "command_fraction_range" in kwargs:
+            raise ValueError("command_fraction_range: RunUpRandomized commands in rpm (command_range_rpm)")
         self.observe_parameters = check_bool("observe_parameters", observe_parameters)
         self.table = BestStableSpeedTable(randomized_task_table())
         ranges = {}
@@ -179,8 +156,10 @@ class RunUpRandomizedEnv(RunUpEnv):
         self.clearance_range_m = ranges["clearance_range_m"]
         self.stiffness_factor_range = ranges["stiffness_factor_range"]
         self.load_range_n = ranges["load_range_n"]
-        self._command_range_rpm_arg = command_range_rpm
-        super().__init__(start_speed_rpm=start_speed_rpm, grid=grid, **kwargs)
+        super().__init__(start_speed_rpm=start_speed_rpm, command_fraction_range=command_range_rpm, **kwargs)
+
+    def _init_plant(self) -> None:
+        """The plant is drawn per episode (and its start equilibrium computed then)."""
 
     def _default_start_speed_rpm(self) -> float:
         """85 % of the lowest speed at which a bearing of the ranges loses stability at the least
@@ -199,92 +178,44 @@ class RunUpRandomizedEnv(RunUpEnv):
                     speeds.append(b.speed_rpm_at(self.table(c, fk, fl)["lambda_c_dmin"]))
         return float(min(speeds))
 
-    def _v1_only_arguments(self, command_range: object) -> dict:
-        if command_range is not None:
-            raise ValueError("command_fraction_range: RunUpRandomized commands in rpm (command_range_rpm)")
-        return {"command_range_rpm": self._command_range_rpm_arg}
-
-    def _init_command_range(self, command_fraction_range: tuple[float, float] | None) -> None:
-        """v1: ``n_cmd`` is drawn uniformly in absolute rpm from ``command_range_rpm`` (default
+    def _init_command_range(self, command_range_rpm: tuple[float, float]) -> None:
+        """``n_cmd`` is drawn uniformly in absolute rpm from ``command_range_rpm`` (default
         :data:`COMMAND_RANGE_RPM`), the same range for every bearing, so the command does not reveal the
         draw."""
-        r = COMMAND_RANGE_RPM if self._command_range_rpm_arg is None else self._command_range_rpm_arg
-        lo, hi = check_range("command_range_rpm", r)
+        lo, hi = check_range("command_range_rpm", command_range_rpm)
         # both bounds: without the parentheses `not a and b` let (0, 1e12) through (issue 18, defect 15)
         if not (self.start_speed_rpm < lo and hi <= self.speed_range_rpm[1]):
             raise ValueError(
                 f"command_range_rpm must lie above the start speed {self.start_speed_rpm:g} rpm and inside "
-                f"speed_range_rpm, got {r!r}"
+                f"speed_range_rpm, got {command_range_rpm!r}"
             )
         self.command_range_rpm = (lo, hi)
 
     # the parameter ablation's entries come before the v1 command entries (which end the observation)
-    def _extra_observation_bounds(self):
-        rest = super()._extra_observation_bounds()
-        if not getattr(self, "observe_parameters", False):
-            return rest
-        lo, hi = np.zeros(3, dtype=np.float32), np.full(3, 2.0, dtype=np.float32)
-        return (lo, hi) if rest is None else (np.concatenate([lo, rest[0]]), np.concatenate([hi, rest[1]]))
+    def _extra_observation_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
+        if not self.observe_parameters:
+            return None
+        return np.zeros(3, dtype=np.float32), np.full(3, 2.0, dtype=np.float32)
 
     def _extra_observation_names(self) -> tuple[str, ...]:
-        rest = super()._extra_observation_names()
-        if not getattr(self, "observe_parameters", False):
-            return rest
-        return ("clearance", "stiffness_factor", "load", *rest)
+        return ("clearance", "stiffness_factor", "load") if self.observe_parameters else ()
 
-    def _extra_observation(self):
-        rest = super()._extra_observation()
+    def _extra_observation(self) -> np.ndarray | None:
         if not self.observe_parameters:
-            return rest
+            return None
         task, nb = self.episode.task, self.nominal_bearing
-        own = np.array(
+        return np.array(
             [
                 task.clearance_m / nb.clearance_m,
                 task.stiffness_factor,
                 task.load_n / nb.external_load_per_bearing_n,
             ]
         )
-        return own if rest is None else np.concatenate([own, rest])
 
     #: ``reset(options=...)`` fixes a draw: each key inside the table's range
     reset_options = ("clearance_m", "stiffness_factor", "load_n")
 
-    def _setup_episode(self, options) -> EpisodeSetup:
-        if self.commanded is not None:
-            return self._setup_commanded_episode(options)
-        rng = self.np_random
-        c, fk, fl, b, model = self._draw_bearing(options)
-        best = self.table(c, fk, fl)
-        lam0 = b.bearing_number_at(self.start_speed_rpm)
-        # the target never exceeds 98 % of the top speed (a very stiff, heavily loaded draw)
-        lam_t = min(self.target_fraction * best["lambda_best"], 0.98 * self.bearing_number_limits(b)[1])
-        s = find_equilibrium(model, lam0)
-        L = model.layout
-        dmin, dmax = self.damping_range
-        dw = float(math.exp(rng.uniform(math.log(dmin), math.log(dmax))))
-        v = 1e-3 * rng.random()
-        ang = rng.uniform(0, 2 * math.pi)
-        s = L.with_rotor(s, *L.rotor(s)[:2], v * math.cos(ang), v * math.sin(ang))
-        target = RandomizedRunUpTarget(lam0, lam_t, c, fk, fl, best["d_opt"])
-        info = self._target_info(b, target)
-        info.update(
-            {
-                "clearance_um": c * 1e6,
-                "stiffness_factor": fk,
-                "foil_stiffness": model.foil_stiffness,
-                "load_n": fl,
-                "best_stable_bearing_number": best["lambda_best"],
-                "best_stable_speed_rpm": b.speed_rpm_at(best["lambda_best"]),
-                "optimum_damping": best["d_opt"],
-            }
-        )
-        return EpisodeSetup(model, s, lam0, dw, b, info, target)
-
-    def _optimum_damping(self) -> float:
-        """Oracle expert (knows the drawn bearing): its optimum damping."""
-        return self.episode.task.optimum_damping
-
-    def _draw_bearing(self, options) -> tuple[float, float, float, BearingParameters, object]:
+    def _draw_bearing(self, options) -> tuple[float, float, float, BearingParameters, GFBModel]:
         """(C, f_K, F_L, bearing, model) of a new episode (the draws, then the fixed options)."""
         rng = self.np_random
         c = float(rng.uniform(*self.clearance_range_m))
@@ -298,8 +229,8 @@ class RunUpRandomizedEnv(RunUpEnv):
         b = self.nominal_bearing.replace(clearance_m=c, external_load_per_bearing_n=fl)
         return c, fk, fl, b, viscoelastic_model(self.grid, b, foil_stiffness=fk * b.foil_stiffness)
 
-    def _setup_commanded_episode(self, options) -> EpisodeSetup:  # type: ignore[override]
-        """v1: the bearing, the hidden damping gain, the commanded damping (the plant's D_W is g times
+    def _setup_episode(self, options) -> EpisodeSetup:
+        """The bearing, the hidden damping gain, the commanded damping (the plant's D_W is g times
         it), the start velocity, then the speed command (absolute rpm, independent of the draw)."""
         rng = self.np_random
         c, fk, fl, b, model = self._draw_bearing(options)
@@ -347,4 +278,8 @@ class RunUpRandomizedEnv(RunUpEnv):
 
     def _unconstrained_best_point(self) -> tuple[float, float]:
         """A drawn plant: computed per episode (~0.8 s; cached in the episode by the caller)."""
-        return CommandedSpeedMixin._unconstrained_best_point(self)
+        return GFBEnv._unconstrained_best_point(self)
+
+    def _optimum_damping(self) -> float:
+        """The table's optimum damping of the drawn bearing (the simple expert's guess)."""
+        return self.episode.task.optimum_damping

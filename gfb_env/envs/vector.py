@@ -5,16 +5,17 @@
 :class:`GFBVectorEnv` of ``N`` copies of the task.  It holds ``N`` plain (unwrapped) task envs and runs
 one control step as the single env's stages over the whole batch:
 
-1. *command*: each env's action sanitised (by the env's own rule, on two scalars), its motor, actuator,
-   kick and shocks (each env's random draws stay in their own order);
-2. *plant*: :meth:`GFBVectorEnv._advance_plants`, the integrator of every stepped env over the control
-   interval, in one compiled call that runs the envs' adaptive loops in parallel (numba ``prange`` over
-   the envs, :class:`~gfb_env.integrator.BatchAdvance`; ``num_threads`` threads, default all cores numba
-   sees; the results do not depend on the thread count);
-3. *judge*: each env's outcome, stability, reward and termination, plus the time limit over the batch;
-4. *emit*: each env's float64 observation and info; NaN clean-up, clipping and the cast to float32 are
-   done for the whole batch at once (elementwise, so bit for bit the single env's), and so are
-   Gymnasium's info arrays (one conversion per value type, exactly ``VectorEnv._add_info``'s arrays).
+1. :meth:`GFBEnv.plan_step` of each env (its action checked and sanitised, its motor, actuator, kick and
+   shocks, its plant's call prepared; each env's random draws stay in their own order);
+2. the plant: :func:`~gfb_env.envs.base.advance_plans`, the integrator of every stepped env over the
+   control interval, in one compiled call that runs the envs' adaptive loops in parallel (numba
+   ``prange`` over the envs, :class:`~gfb_env.integrator.BatchAdvance`; ``num_threads`` threads, default
+   all cores numba sees; the results do not depend on the thread count);
+3. :meth:`GFBEnv.finish_step` of each env (judge: outcome, stability, reward and termination; emit: its
+   observation and info), plus the time limit over the batch; Gymnasium's info arrays are built for the
+   whole batch (one conversion per value type, exactly ``VectorEnv._add_info``'s arrays).
+
+:meth:`GFBEnv.step` is the same three phases for one env.
 
 Semantics: identical, bit for bit, to ``gymnasium.vector.SyncVectorEnv`` over ``gymnasium.make(id)`` (the
 task env in ``TimeLimit``) with the same seeds: observations, rewards, terminations, truncations and infos
@@ -43,11 +44,11 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from gfb_env.envs.base import NUMERICAL_FAILURES, GFBEnv
+from gfb_env.envs.base import GFBEnv, advance_plans
 from gfb_env.envs.run_up import RunUpEnv
 from gfb_env.envs.run_up_randomized import RunUpRandomizedEnv
 from gfb_env.envs.whirl_recovery import WhirlRecoveryEnv
-from gfb_env.integrator import DEFAULT_MAX_STEPS, AdvanceResult, BatchAdvance
+from gfb_env.integrator import BatchAdvance
 
 __all__ = ["GFBVectorEnv", "RunUpVectorEnv", "RunUpRandomizedVectorEnv", "WhirlRecoveryVectorEnv"]
 
@@ -137,16 +138,27 @@ class GFBVectorEnv(VectorEnv):
             seeds: list[int | None] = [None] * n
         elif isinstance(seed, int | np.integer) and not isinstance(seed, bool):
             seeds = [int(seed) + i for i in range(n)]
-        else:
+        elif isinstance(seed, list | tuple):
             seeds = list(seed)
+        else:  # Gymnasium's SyncVectorEnv raises TypeError here too (without saying why)
+            raise TypeError(
+                f"seed must be None, an int or a list of num_envs={n} ints or None, "
+                f"got {type(seed).__name__} {seed!r}"
+            )
         if len(seeds) != n:
             raise ValueError(f"seed: a list of seeds must have length num_envs={n}, got {len(seeds)}")
         options = dict(options) if options is not None else None
         mask = np.ones(n, dtype=np.bool_)
         if options is not None and "reset_mask" in options:
+            # the exception types of Gymnasium's SyncVectorEnv: TypeError for the type and the dtype,
+            # ValueError for the shape and an all-False mask
             mask = options.pop("reset_mask")
-            if not isinstance(mask, np.ndarray) or mask.shape != (n,) or mask.dtype != np.bool_:
-                raise ValueError(f"options['reset_mask'] must be a bool numpy array of shape ({n},)")
+            if not isinstance(mask, np.ndarray):
+                raise TypeError(f"options['reset_mask'] must be a numpy array, got {type(mask).__name__}")
+            if mask.shape != (n,):
+                raise ValueError(f"options['reset_mask'] must have shape ({n},), got {mask.shape}")
+            if mask.dtype != np.bool_:
+                raise TypeError(f"options['reset_mask'] must have dtype bool, got {mask.dtype}")
             if not np.any(mask):
                 raise ValueError("options['reset_mask'] must contain at least one True")
             if self._needs_reset and not np.all(mask):
@@ -159,9 +171,7 @@ class GFBVectorEnv(VectorEnv):
         if self._needs_reset:
             raise RuntimeError("call reset() before step()")
         n = self.num_envs
-        a = np.asarray(actions, dtype=np.float64)
-        if a.shape != (n, 2):
-            raise ValueError(f"actions must have shape ({n}, 2), got {np.shape(actions)}")
+        a = self.check_actions(actions)
         if self.autoreset_mode is AutoresetMode.NEXT_STEP:
             to_reset = self._autoreset_envs.copy()
         else:
@@ -199,6 +209,20 @@ class GFBVectorEnv(VectorEnv):
             self._truncations.copy(),
             infos,
         )
+
+    def check_actions(self, actions: Any) -> np.ndarray:
+        """``actions`` as float64 ``(num_envs, 2)``, with the exception types of Gymnasium's
+        ``SyncVectorEnv``: a scalar (nothing to iterate over) raises ``TypeError``; a wrong shape and a
+        complex or non-numeric dtype raise ``ValueError`` (as each env's ``step`` does)."""
+        n = self.num_envs
+        a = np.asarray(actions)
+        if a.ndim == 0:
+            raise TypeError(f"actions must be a batch of shape ({n}, 2), got the scalar {actions!r}")
+        if a.shape != (n, 2):
+            raise ValueError(f"actions must have shape ({n}, 2), got {a.shape}")
+        if a.dtype.kind not in "biuf":
+            raise ValueError(f"actions must be real numbers, got dtype {a.dtype}")
+        return a.astype(np.float64, copy=False)
 
     def _batch_infos(self, entries: list[tuple[int, dict]]) -> dict[str, Any]:
         """Gymnasium's vector info of ``entries`` (env index, info), exactly what calling
@@ -295,65 +319,28 @@ class GFBVectorEnv(VectorEnv):
 
     def _step_envs(self, actions: np.ndarray, stepped: np.ndarray) -> list[dict]:
         """One control step of the envs ``stepped`` (indices) with their rows of ``actions`` (float64,
-        ``(num_envs, 2)``): observations, rewards, terminations and time-limit truncations into the
-        batch; returns their infos.  No autoreset (the callers' autoreset semantics differ)."""
+        ``(num_envs, 2)``): the single env's protocol over the batch (:meth:`GFBEnv.plan_step` of each,
+        the plant of all in one compiled call, :func:`~gfb_env.envs.base.advance_plans`, then
+        :meth:`GFBEnv.finish_step` of each); observations, rewards, terminations and time-limit
+        truncations into the batch; returns their infos.  No autoreset (the callers' autoreset
+        semantics differ)."""
         envs = [self.envs[i] for i in stepped]
-        # ---- command: each env's action sanitised by the env itself (two scalars: ~1 us, cheaper than
-        # the batch's NumPy calls below N ~ 20, and one owner of the rule)
-        rows = actions.tolist()
-        commands = []
-        for i, env in zip(stepped, envs, strict=True):
-            env._check_can_step()
-            ai, sanitised = env._sanitise(rows[i])
-            commands.append((ai, sanitised, *env._prepare_plant(ai)))
-        # ---- plant
-        results = self._advance_plants(envs, [(c[3], c[4]) for c in commands])
-        # ---- judge and emit
-        raws, infos = [], []
-        for k, (i, env) in enumerate(zip(stepped, envs, strict=True)):
-            ai, sanitised, lam0, _, _, kick = commands[k]
-            out, trace = env._plant_outcome(lam0, results[k])
-            env._judge(out, trace, ai, sanitised, kick)
-            raw, info = env._emit_raw()
-            raws.append(raw)
+        rows = actions.tolist()  # each env's action as two Python floats (its own check is then cheap)
+        plans = [env.plan_step(rows[i]) for i, env in zip(stepped, envs, strict=True)]
+        results = advance_plans(self._batch, plans)
+        infos = []
+        for i, env, plan, result in zip(stepped, envs, plans, results, strict=True):
+            obs, reward, terminated, _, info = env.finish_step(plan, result)
+            self._observations[i] = obs
+            self._rewards[i] = reward
+            self._terminations[i] = terminated
             infos.append(info)
-            self._rewards[i] = env.episode.reward
-            self._terminations[i] = env.episode.done
-        if raws:
-            self._observations[stepped] = self.envs[0]._finish_observation(np.stack(raws))
         self._elapsed_steps[stepped] += 1
         if self.max_episode_steps is not None:
             self._truncations[stepped] = self._elapsed_steps[stepped] >= self.max_episode_steps
         else:
             self._truncations[stepped] = False
         return infos
-
-    def _advance_plants(
-        self, envs: list[GFBEnv], commands: list[tuple[float, float]]
-    ) -> list[AdvanceResult | Exception]:
-        """The plant stage: every stepped env's integrator over one control interval toward its commanded
-        (Lambda, D_W), all in one compiled, parallel call (:class:`~gfb_env.integrator.BatchAdvance`:
-        each env's compiled loop and Python preparation and finish are exactly those of
-        :meth:`GFBEnv._run_integrator`, so each result, an ``AdvanceResult`` or the numerical failure
-        raised, is that env's own, bit for bit)."""
-        results: list[AdvanceResult | Exception | None] = [None] * len(envs)
-        integs, calls, slots = [], [], []
-        for k, (env, (lam, dw)) in enumerate(zip(envs, commands, strict=True)):
-            integ = env._integ
-            try:
-                call = integ.prepare(
-                    integ.tau + env.control_interval, lam, dw, env.record_interval, env._probe_idx,
-                    DEFAULT_MAX_STEPS,
-                )  # fmt: skip
-            except NUMERICAL_FAILURES as exc:
-                results[k] = exc
-                continue
-            integs.append(integ)
-            calls.append(call)
-            slots.append(k)
-        for k, res in zip(slots, self._batch.run_prepared(integs, calls), strict=True):
-            results[k] = res
-        return results  # type: ignore[return-value]
 
     @property
     def num_threads(self) -> int:

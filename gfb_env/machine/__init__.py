@@ -13,7 +13,7 @@
 
 Each is a small frozen, validated configuration with physical units in its field names; the defaults
 are realistic and justified in ``docs/machine.md``, and each sensor/actuator has an ``ideal()`` that
-reproduces the v0 environments exactly.  The envs take them as constructor arguments
+is the exact instrument (the classes' default machine).  The envs take them as constructor arguments
 (:class:`~gfb_env.envs.config.EnvConfig`).
 """
 

@@ -68,7 +68,7 @@ class DampingActuatorState:
 class FoilDampingActuator:
     """First-order lag + rate limit on ``ln D_W`` and an effectiveness gain (see the module docstring).
 
-    The defaults are a realistic actuator (``docs/machine.md``); :meth:`ideal` is the v0 actuator
+    The defaults are a realistic actuator (``docs/machine.md``); :meth:`ideal` is the exact actuator
     (the command takes effect at once, exactly).
 
     Attributes:
@@ -102,7 +102,7 @@ class FoilDampingActuator:
 
     @classmethod
     def ideal(cls) -> FoilDampingActuator:
-        """No lag, no rate limit, gain 1: the command is the plant's D_W at the step's end (v0)."""
+        """No lag, no rate limit, gain 1: the command is the plant's D_W at the step's end."""
         return cls(time_constant_ms=0.0, rate_limit_decades_per_s=math.inf, gain=1.0)
 
     @property

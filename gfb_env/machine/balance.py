@@ -32,7 +32,7 @@ class RotorBalance:
 
     Attributes:
         grade_range_mm_s: ``(min, max)`` of the ISO balance grade G in mm/s, log-uniform; ``(0, 0)``:
-            a perfectly balanced rotor (v0).
+            a perfectly balanced rotor.
         reference_speed_rpm: the speed at which the grade holds (the maximum service speed); ``None``:
             the top of the env's speed range.
     """
@@ -54,7 +54,7 @@ class RotorBalance:
 
     @classmethod
     def perfect(cls) -> RotorBalance:
-        """No unbalance (the v0 tasks): draws nothing."""
+        """No unbalance (the ideal machine): draws nothing."""
         return cls(grade_range_mm_s=(0.0, 0.0))
 
     @property

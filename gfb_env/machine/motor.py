@@ -17,7 +17,7 @@ __all__ = ["Motor"]
 
 @dataclass(frozen=True)
 class Motor:
-    """Acceleration-limited motor (the v0 speed command, as a component).
+    """Acceleration-limited motor (the speed command of the first tasks, as a component).
 
     Attributes:
         max_acceleration_rpm_per_s: the acceleration limit; ``a_speed = +-1`` ramps at it.  Default
@@ -48,7 +48,7 @@ class Motor:
     ) -> float:
         """Commanded Lambda at the end of a control step of ``control_interval`` tau that starts at
         ``bearing_number`` with the speed action ``a_speed``, clipped into ``limits`` (Lambda at the
-        ends of the speed range).  The arithmetic is v0's, operation for operation."""
+        ends of the speed range).  The arithmetic is the first tasks', operation for operation."""
         lam_lo, lam_hi = limits
         # np.clip's min(max(x, lo), hi) in plain Python (a NaN passes as there; ~4 us less per step)
         return float(

@@ -21,7 +21,7 @@ __all__ = ["PressureTaps"]
 class PressureTaps:
     """Pressure taps with offset and noise (see the module docstring).
 
-    The defaults are realistic (``docs/machine.md``); :meth:`ideal` is the v0 sensor (exact).
+    The defaults are realistic (``docs/machine.md``); :meth:`ideal` is the exact sensor.
 
     Attributes:
         noise_kpa: standard deviation of the noise of one reading, kPa (default 0.35: 0.1 % of the
@@ -45,7 +45,7 @@ class PressureTaps:
 
     @classmethod
     def ideal(cls) -> PressureTaps:
-        """No noise, no offset: the v0 observation."""
+        """No noise, no offset: the exact pressures."""
         return cls(noise_kpa=0.0, bias_kpa=0.0, bias_spread_kpa=0.0)
 
     @property

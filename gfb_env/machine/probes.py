@@ -23,7 +23,7 @@ then the observation scales):
 
 :meth:`ProximityProbes.measurement_errors` returns what the readings add to the truth in each of those
 channels (in the xi/eta frame, um and um/s): the env adds it to the exact values it has always
-observed, so that an ideal probe (no noise, no bias) reproduces the v0 observation bit for bit.  For
+observed, so that an ideal probe (no noise, no bias) reproduces the exact observation bit for bit.  For
 the velocity this leaves out the estimator's own truncation error (the slope of a line through 5
 samples 0.5 tau apart of a whirl of period ~25 tau): only its noise is modelled.
 """
@@ -62,7 +62,7 @@ class ProbeErrors:
 class ProximityProbes:
     """Two proximity probes (X, Y) with bias and Gaussian noise (see the module docstring).
 
-    The defaults are a realistic pair (``docs/machine.md``); :meth:`ideal` is the v0 sensor (exact).
+    The defaults are a realistic pair (``docs/machine.md``); :meth:`ideal` is the exact sensor.
 
     Attributes:
         noise_um: standard deviation of the noise of one sample of one probe, um (default 0.3: a
@@ -107,7 +107,7 @@ class ProximityProbes:
 
     @classmethod
     def ideal(cls) -> ProximityProbes:
-        """No noise, no bias: the v0 observation."""
+        """No noise, no bias: the exact observation."""
         return cls(noise_um=0.0, bias_um=(0.0, 0.0), bias_spread_um=0.0)
 
     @property

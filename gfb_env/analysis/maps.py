@@ -327,10 +327,13 @@ def hysteresis_task(
     grid: str = "79x7",
     n_steps: int = 300,
     coast_down: bool = False,
-    max_points: int = 30,
+    max_points: int | None = None,
+    start: str = "hopf",
 ) -> dict:
-    """One hysteresis-map point: ``Lambda_c``, ``Lambda_fold`` (shooting + continuation), the limit-cycle
-    amplitude at ``Lambda_c`` and optionally the coast-down estimate."""
+    """One hysteresis-map point: ``Lambda_c``, ``Lambda_fold`` (shooting + continuation from the Hopf
+    point, or from the developed whirl with ``start="whirl"``: see
+    :func:`~gfb_env.analysis.periodic.fold_bearing_number`), the limit-cycle amplitude at ``Lambda_c``
+    and optionally the coast-down estimate."""
     model = GFBModel(structure, Grid.parse(grid), foil_stiffness=foil_stiffness)
     cp = critical_bearing_number(model, foil_damping)
     out = cp.as_dict()
@@ -345,7 +348,12 @@ def hysteresis_task(
     )
     try:
         fr = fold_bearing_number(
-            model, foil_damping, critical=cp.critical_bearing_number, n_steps=n_steps, max_points=max_points
+            model,
+            foil_damping,
+            critical=cp.critical_bearing_number,
+            n_steps=n_steps,
+            max_points=max_points,
+            start=start,
         )
         out.update(
             {

@@ -124,6 +124,8 @@ def cmd_hysteresis(args: argparse.Namespace) -> int:
             "limit_cycle_max_eccentricity_at_critical": fr.max_eccentricity_at_critical,
             "whirl_period_at_critical": fr.period_at_critical,
             "subcritical": fr.subcritical,
+            "contact_bearing_number": fr.contact_bearing_number,
+            "band_lower_bearing_number": fr.band_lower_bearing_number,
             "continuation_message": fr.message,
         }
     )
@@ -150,9 +152,10 @@ def cmd_hysteresis(args: argparse.Namespace) -> int:
             "  fold of cycles   Lambda_fold = "
             + ("not found" if lf is None else f"{lf:.5f} ({d['fold_speed_rpm']:.0f} rpm)")
         )
-        if lf is not None:
-            kind = "subcritical: bistable band" if lf < cp.critical_bearing_number else "no hysteresis"
-            print(f"  {kind} [{lf:.4f}, {cp.critical_bearing_number:.4f}]")
+        if lf is not None or fr.contact_bearing_number is not None:
+            lo = fr.band_lower_bearing_number
+            kind = "subcritical: bistable band" if lo < cp.critical_bearing_number else "no hysteresis"
+            print(f"  {kind} [{lo:.4f}, {cp.critical_bearing_number:.4f}]")
         print(
             f"  limit cycle at Lambda_c: amplitude {fr.amplitude_at_critical:.4f}, "
             f"max eps {fr.max_eccentricity_at_critical:.4f}, period {fr.period_at_critical:.3f}"
@@ -276,8 +279,9 @@ def add_analysis_commands(subparsers) -> None:
             "JSON adds to the `critical` keys: fold_bearing_number, fold_speed_rpm,\n"
             "limit_cycle_amplitude_at_critical (half peak-to-peak xi),\n"
             "limit_cycle_max_eccentricity_at_critical,\n"
-            "whirl_period_at_critical, subcritical, continuation_message and, with --coast-down,\n"
-            "coast_down_fold_bearing_number."
+            "whirl_period_at_critical, subcritical, contact_bearing_number (no fold: where the unstable\n"
+            "cycles reach contact), band_lower_bearing_number (the band's lower edge),\n"
+            "continuation_message and, with --coast-down, coast_down_fold_bearing_number."
         ),
     )
     _add_common(p)

@@ -666,9 +666,10 @@ def continue_periodic_orbits(
     back) plus ``points_after_fold`` points, ``Lambda < min_bearing_number`` or ``max_points``.
 
     ``second``: the branch's second point, given (e.g. the second of :func:`hopf_cycles`); the first
-    secant is then ``orbit -> second`` and ``first_step`` is not used.  ``stop_bearing_number``: past
-    the fold, continue until ``Lambda`` crosses it (instead of ``points_after_fold`` points), e.g.
-    ``Lambda_c`` to reach the stable cycle there from a branch that starts at the Hopf point.
+    secant is then ``orbit -> second`` and ``first_step`` is not used.  ``stop_bearing_number``:
+    instead of ``points_after_fold`` points past the fold, continue until the branch, rising in
+    ``Lambda`` (after any folds), passes it: e.g. just above ``Lambda_c`` for a branch from the Hopf
+    point, which then holds the fold and the stable whirl at ``Lambda_c``.
     ``min_film_thickness``: stop once a cycle comes this close to contact (the coarse grids' discrete
     film pressure then loses positivity and the sweeps fail one after another at ever smaller steps).
     """
@@ -746,8 +747,8 @@ def continue_periodic_orbits(
             )
             break
         if stop_bearing_number is not None:
-            if turned and (lam - stop_bearing_number) * sign <= 0:
-                message = "fold passed"
+            if dl[-1] > 0 and lam >= stop_bearing_number:
+                message = "fold passed" if turned else f"rose past Lambda={stop_bearing_number:.5g}"
                 break
         elif turned > points_after_fold:
             message = "fold passed"
@@ -789,7 +790,13 @@ def _fold_from_branch(orbits: list[PeriodicOrbit], sign: float) -> tuple[float |
 # ------------------------------------------------------------------------------------------------
 @dataclass
 class FoldResult:
-    """Fold of cycles of one configuration (:func:`fold_bearing_number`)."""
+    """Fold of cycles of one configuration (:func:`fold_bearing_number`).
+
+    ``fold_bearing_number``: the lowest ``Lambda`` of the branch of cycles where it folds (None: no
+    fold).  ``contact_bearing_number``: where a subcritical branch has no fold, the lowest ``Lambda``
+    of its unstable cycles before they reach contact (None otherwise).  ``band_lower_bearing_number``
+    combines them into the lower edge of the hysteresis band.
+    """
 
     critical_bearing_number: float
     fold_bearing_number: float | None
@@ -798,12 +805,41 @@ class FoldResult:
     period_at_critical: float
     branch: CycleBranch | None = field(repr=False)
     message: str = ""
+    contact_bearing_number: float | None = None
 
     @property
     def subcritical(self) -> bool | None:
         if self.fold_bearing_number is None:
             return None
         return self.fold_bearing_number < self.critical_bearing_number
+
+    @property
+    def band_lower_bearing_number(self) -> float:
+        """Lower edge of the hysteresis band, the region below ``Lambda_c`` where a large enough
+        disturbance does not die out: the fold of cycles where the branch has one below ``Lambda_c``
+        (the whirl persists above it); else ``contact_bearing_number``, the lowest ``Lambda`` of a
+        branch of unstable cycles that runs into contact without folding (above it such a disturbance
+        ends in touchdown); else ``Lambda_c`` (no band)."""
+        lc = self.critical_bearing_number
+        if self.fold_bearing_number is not None and self.fold_bearing_number < lc:
+            return self.fold_bearing_number
+        if self.contact_bearing_number is not None and self.contact_bearing_number < lc:
+            return self.contact_bearing_number
+        return lc
+
+
+def _critical_mode(model: GFBModel, dw: float, lam_c: float) -> tuple[np.ndarray, float, np.ndarray]:
+    """``(s_eq, omega, v)`` at the Hopf point: the equilibrium and the rightmost oscillatory
+    eigenpair ``i omega, v`` of its Jacobian."""
+    import scipy.linalg as sla
+
+    s_eq = find_equilibrium(model, lam_c)
+    ev, V = sla.eig(model.jacobian(s_eq, lam_c, dw).toarray(), check_finite=False)
+    osc = np.flatnonzero(ev.imag > 1e-8)
+    if len(osc) == 0:
+        raise ShootingError(f"no oscillatory eigenvalue at Lambda_c={lam_c:.5g}: no Hopf point")
+    j = osc[np.argmax(ev.real[osc])]
+    return s_eq, float(ev[j].imag), V[:, j]
 
 
 def hopf_cycles(
@@ -835,21 +871,13 @@ def hopf_cycles(
     Raises:
         ShootingError: no complex critical eigenpair, or the shooting did not converge.
     """
-    import scipy.linalg as sla
-
     dw = check_positive("foil_damping", foil_damping)
     lam_c = check_positive("critical", critical)
     if len(amplitudes) != 2 or not all(math.isfinite(a) and a > 0 for a in amplitudes):
         raise ValueError(f"amplitudes must be two positive numbers, got {amplitudes!r}")
     L = model.layout
     n = L.size
-    s_eq = find_equilibrium(model, lam_c)
-    ev, V = sla.eig(model.jacobian(s_eq, lam_c, dw).toarray(), check_finite=False)
-    osc = np.flatnonzero(ev.imag > 1e-8)
-    if len(osc) == 0:
-        raise ShootingError(f"no oscillatory eigenvalue at Lambda_c={lam_c:.5g}: no Hopf point")
-    j = osc[np.argmax(ev.real[osc])]
-    omega, v = float(ev[j].imag), V[:, j]
+    s_eq, omega, v = _critical_mode(model, dw, lam_c)
     if abs(v[L.xi_index]) == 0:
         raise ShootingError("the critical mode does not move the journal horizontally")
     w = (v / v[L.xi_index]).real  # xi entry 1 (real), so xi' = Re(i omega) = 0 at tau = 0
@@ -903,8 +931,11 @@ def fold_bearing_number(
 
     The limit-cycle amplitude (and max eccentricity, period) at ``Lambda_c`` is interpolated on the
     stable part of the branch (beyond the fold), NaN where that part does not reach ``Lambda_c``
-    (the cycle closes the film first; the message says so).  A supercritical Hopf point (the branch
-    rises in ``Lambda``) has no hysteresis band: fold None, amplitude 0 at ``Lambda_c``.
+    (the cycle closes the film first; the message says so).  At a supercritical Hopf point the branch
+    rises in ``Lambda`` from amplitude 0; it is followed to ``Lambda_c + offset`` and a fold is
+    reported only if it turns back below ``Lambda_c`` on the way.  A subcritical branch that reaches
+    contact (min film thickness 0.01) without folding gives ``contact_bearing_number`` instead (21x5 at
+    ``K_W = 1, D_W = 1``; the tasks' foil on 31x7 at ``D_W <= 0.5``).
 
     Raises:
         ShootingError: no whirl settles (``"whirl"``), or the first cycles cannot be shot.
@@ -916,6 +947,8 @@ def fold_bearing_number(
         raise ValueError(f"start must be 'hopf' or 'whirl', got {start!r}")
     if critical is None:
         critical = critical_bearing_number(model, dw).critical_bearing_number
+    contact = None
+    amp = eps = per = math.nan
     if start == "whirl":
         lam0 = critical + offset
         sw = settle_whirl(
@@ -933,19 +966,26 @@ def fold_bearing_number(
         upper = br.orbits[:j]
     else:
         o1, o2 = hopf_cycles(model, dw, critical, n_steps=n_steps)
-        if o2.bearing_number > o1.bearing_number:
-            br = CycleBranch([o1, o2], None, None, "supercritical Hopf: the cycles rise in Lambda")
-            return FoldResult(critical, None, 0.0, math.nan, o1.period, br, br.message)
         br = continue_periodic_orbits(
             model,
             o1,
             second=o2,
             max_points=max_points or 60,
             progress=progress,
-            stop_bearing_number=critical,
+            stop_bearing_number=critical + offset,
         )
-        # the stable (upper) part: from the fold on
-        upper = br.orbits[int(np.argmin(br.bearing_number)) :] if br.fold_bearing_number is not None else []
+        # the band's lower edge is the lowest Lambda of the branch (a supercritical Hopf point's branch
+        # rises first and may still fold back below Lambda_c further on)
+        br.fold_bearing_number, br.fold_amplitude = _fold_from_branch(br.orbits, -1.0)
+        upper = []
+        if br.fold_bearing_number is not None:
+            upper = br.orbits[int(np.argmin(br.bearing_number)) :]  # the stable whirl: from the fold on
+        elif o2.bearing_number > o1.bearing_number:
+            amp = 0.0  # supercritical: the cycles grow from zero amplitude at Lambda_c
+            per = 2 * math.pi / _critical_mode(model, dw, critical)[1]
+        elif br.orbits[-1].min_film_thickness < 0.02:
+            # subcritical without a fold: the unstable cycles run into contact
+            contact = float(br.bearing_number.min())
     ls = np.array([x.bearing_number for x in upper])
     message = br.message
     if len(ls) and ls.min() <= critical <= ls.max():
@@ -957,11 +997,14 @@ def fold_bearing_number(
         amp = interp([x.amplitude for x in upper])
         eps = interp([x.max_eccentricity for x in upper])
         per = interp([x.period for x in upper])
-    else:
-        amp = eps = per = math.nan
-        if br.fold_bearing_number is not None:
-            message += "; the stable cycles do not reach Lambda_c (no amplitude there)"
-    return FoldResult(critical, br.fold_bearing_number, amp, eps, per, br, message)
+    elif br.fold_bearing_number is not None:
+        message += "; the stable cycles do not reach Lambda_c (no amplitude there)"
+    if contact is not None:
+        message += (
+            f"; no fold: the unstable cycles reach contact at Lambda={contact:.5g} (the band's lower edge: "
+            "above it a large disturbance ends in touchdown)"
+        )
+    return FoldResult(critical, br.fold_bearing_number, amp, eps, per, br, message, contact)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -31,8 +31,8 @@ from gfb_env.params import BearingParameters
 __all__ = ["add_analysis_commands", "cmd_critical", "cmd_hysteresis", "cmd_map"]
 
 _FMT = argparse.RawDescriptionHelpFormatter
-#: Largest ``--n-steps``: the shooting sweep keeps a sparse Jacobian and its LU per step (measured
-#: 0.26 MB a step on 79x7, 1.7 MB on 157x13), so 2000 steps hold 0.5 GB / 3.4 GB.
+#: Largest ``--n-steps``: the shooting sweep keeps the Jacobian and its factors per step in block form
+#: (0.18 MB a step on 79x7, 1.3 MB on 157x13), so 2000 steps hold 0.4 GB / 2.6 GB.
 MAX_SHOOTING_STEPS = 2000
 
 

@@ -29,6 +29,7 @@ DATA_FILES = (
     "gfb_env/envs/data/task_constants.json",
     "gfb_env/data/stability_map.csv",
     "gfb_env/data/hysteresis_map.csv",
+    "gfb_env/data/hysteresis_map_tasks.csv",
     "gfb_agents/hyperparams/ppo.yml",
     "gfb_agents/hyperparams/sac.yml",
     "gfb_agents/policies/RunUpRandomized_sac/model.zip",

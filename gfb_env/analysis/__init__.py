@@ -38,6 +38,7 @@ from gfb_env.analysis.periodic import (
     continue_periodic_orbits,
     find_periodic_orbit,
     fold_bearing_number,
+    hopf_cycles,
     periodic_orbit_from_simulation,
     settle_whirl,
 )
@@ -92,6 +93,7 @@ __all__ = [
     "dominant_frequency",
     "find_periodic_orbit",
     "fold_bearing_number",
+    "hopf_cycles",
     "jacobian_eigenvalues",
     "linear_stability",
     "load_hysteresis_map",

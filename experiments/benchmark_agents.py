@@ -503,8 +503,28 @@ def markdown_table(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> None:
-    """First-episode path of every agent in the (Lambda, D_W) plane over the nominal map's regions."""
+def nominal_band_lower(env, path: str | Path | None = None):
+    """``D_W -> `` lower edge of the nominal bearing's hysteresis band (the fold of cycles, or where the
+    unstable cycles reach contact, or ``Lambda_c`` where there is no band), from the map of the tasks'
+    nominal bearing (``gfb_env/data/hysteresis_map_tasks.csv``, made by ``python -m
+    gfb_experiments.hysteresis_map --tasks``) interpolated in log D_W; None when that map is not of
+    the env's grid and foil stiffness (within 5 %).  For the figure only: the agents do not read it."""
+    from gfb_env.analysis.maps import HYSTERESIS_MAP_TASKS_CSV, MAPS_DATA_DIR, load_hysteresis_map
+
+    u = getattr(env, "unwrapped", env)
+    hm = load_hysteresis_map(path if path is not None else MAPS_DATA_DIR / HYSTERESIS_MAP_TASKS_CSV)
+    kw = float(u.constants.get("foil_stiffness", 0.0) or u.nominal_bearing.foil_stiffness)
+    sel = (np.abs(np.log(hm.foil_stiffness / kw)) < 0.05) & (hm.grid == str(u.grid))
+    if hm.band_lower_bearing_number is None or not np.isfinite(hm.band_lower_bearing_number[sel]).any():
+        return None
+    return lambda d: hm.band_lower(kw, d)
+
+
+def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str], band_lower=None) -> None:
+    """First-episode path of every agent in the (Lambda, D_W) plane over the nominal map's regions.
+
+    ``band_lower``: ``D_W ->`` lower edge of the hysteresis band (:func:`nominal_band_lower`); without
+    it the band is drawn from the nominal map's fold where that is known."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -515,6 +535,9 @@ def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> N
     d = np.geomspace(nmap.damping.min(), nmap.damping.max(), 200)
     lc = np.array([nmap.critical_at(x) for x in d])
     lf = np.array([nmap.fold_at(x) for x in d])
+    if band_lower is not None:
+        # the band map's Lambda_c (eigenvalues, same grid) and the task constants' agree to ~1e-3
+        lf = np.minimum([band_lower(x) for x in d], lc)
     names = sorted({a for (_, a) in paths})
     colors = {a: plt.cm.tab10(i % 10) for i, a in enumerate(names)}
     styles = {a: ("-", "--", ":", "-.")[i % 4] for i, a in enumerate(names)}
@@ -531,7 +554,7 @@ def plot_paths(paths: dict, nmap: NominalMap, path: Path, tasks: list[str]) -> N
                 np.where(np.isfinite(lf), lf, lc),
                 lc,
                 color="#ffe9a8",
-                label="bistable (equilibrium + whirl)",
+                label="bistable (a large disturbance: whirl or touchdown)",
             )
         ax.fill_betweenx(d, lc, x1, color="#f6c6c6", label="whirl only (above $\\Lambda_c$)")
         ax.plot(lc, d, "k-", lw=1)
@@ -594,7 +617,9 @@ def write_outputs(
         )
     tasks = list(dict.fromkeys(r["task"] for r in rows))
     env = gym.make(tasks[0], **env_kwargs.get(tasks[0], {}))
-    plot_paths(paths, NominalMap.from_env(env), out / "benchmark_agents_paths.png", tasks)
+    plot_paths(
+        paths, NominalMap.from_env(env), out / "benchmark_agents_paths.png", tasks, nominal_band_lower(env)
+    )
     env.close()
     jsonio.write_json(out / "benchmark_agents.json", {**meta, "rows": rows, "tasks": per_task})
 

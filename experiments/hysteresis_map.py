@@ -33,7 +33,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--tasks",
         action="store_true",
-        help="the environments' nominal bearing (K_W=0.5007) on their 31x7 grid, D_W 0.25..8",
+        help="the environments' nominal bearing (K_W=0.5007) on their 31x7 grid, D_W 0.1..10 "
+        "(shipped as gfb_env/data/hysteresis_map_tasks.csv for the benchmark's path figure)",
     )
     ap.add_argument("--out", default=None, help="output directory (default results/hysteresis_map)")
     ap.add_argument("--n-jobs", type=int, default=1, help="parallel workers")
@@ -56,7 +57,9 @@ def main(argv: list[str] | None = None) -> int:
         from gfb_env.envs import DEFAULT_GRID, NOMINAL_BEARING
 
         kw_env = round(NOMINAL_BEARING.foil_stiffness, 4)
-        kws, dws, grid, n_steps = [kw_env], [0.25, 0.5, 1.0, 2.0, 4.0, 8.0], DEFAULT_GRID, a.n_steps
+        # the tasks' damping range, ~1.5x apart: the band's width changes fast near the optimum damping
+        dws = [0.1, 0.15, 0.25, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 2.8, 4.0, 5.6, 8.0, 10.0]
+        kws, grid, n_steps = [kw_env], DEFAULT_GRID, a.n_steps
         cd = {(kw_env, 2.0)}
     else:
         kws, dws, grid, n_steps = [1.0, kw_table], [0.5, 1.0, 2.0, 4.0, 8.0, 16.0], "79x7", a.n_steps
@@ -88,6 +91,8 @@ def main(argv: list[str] | None = None) -> int:
                     "fold_bearing_number",
                     "coast_down_fold_bearing_number",
                     "limit_cycle_amplitude_at_critical",
+                    "contact_bearing_number",
+                    "band_lower_bearing_number",
                     "fold_message",
                 )
             }
@@ -115,14 +120,24 @@ def _plot(rows: list[dict], kws: list[float], path: Path) -> None:
 
         lc, lf = col("critical_bearing_number"), col("fold_bearing_number")
         cd = col("coast_down_fold_bearing_number")
-        known = np.isfinite(lf)
+        # the band's lower edge: the fold, or where the unstable cycles reach contact, or Lambda_c
+        band = col("band_lower_bearing_number")
+        contact = col("contact_bearing_number")
+        known = np.isfinite(lf) | np.isfinite(band)
+        lf_fill = np.where(np.isfinite(band), band, np.where(np.isfinite(lf), lf, lc))
         top = np.nanmax(lc) * 1.15 if np.isfinite(lc).any() else 1.0
-        bot = np.nanmin(np.where(known, lf, lc)) * 0.9 if np.isfinite(lc).any() else 0.3
-        lf_fill = np.where(known, lf, lc)
+        bot = np.nanmin(lf_fill) * 0.9 if np.isfinite(lc).any() else 0.3
         ax.fill_between(d, bot, lf_fill, color="tab:green", alpha=0.25, label="stable equilibrium only")
         ax.fill_between(
-            d, lf_fill, lc, color="tab:orange", alpha=0.35, label="bistable (equilibrium + whirl)"
+            d,
+            lf_fill,
+            lc,
+            color="tab:orange",
+            alpha=0.35,
+            label="bistable (a large disturbance: whirl, or touchdown)",
         )
+        if np.isfinite(contact).any():
+            ax.plot(d, contact, "v", color="tab:brown", ms=6, label="unstable cycles reach contact (no fold)")
         ax.fill_between(d, lc, top, color="tab:red", alpha=0.2, label="whirl only")
         if not known.all():
             # no fold from shooting there (the whirl touches down, or the shooting failed): below

@@ -1,6 +1,7 @@
 """Compiled (numba) kernels of the coupled model: right-hand side, Jacobian blocks, linear solver.
 
-Private module: only :mod:`gfb_env.model` and :mod:`gfb_env.integrator` call it, through
+Private module: only :mod:`gfb_env.model`, :mod:`gfb_env.integrator` and the shooting sweep of
+:mod:`gfb_env.analysis.periodic` (its stored per-step factors) call it, through
 :class:`gfb_env.model.StateLayout`, which owns the state ordering these kernels assume:
 
     s = [P_00 .. P_0,nr-1, P_10 .. P_nc-1,nr-1,   (nc*nr interior pressures, phi-major)

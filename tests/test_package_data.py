@@ -26,6 +26,7 @@ REPO = Path(__file__).resolve().parents[1]
     [
         ("stability_map.csv", "results/fig4_stability_map/stability_map.csv"),
         ("hysteresis_map.csv", "results/hysteresis_map/hysteresis_map.csv"),
+        ("hysteresis_map_tasks.csv", "results/hysteresis_map_tasks/hysteresis_map.csv"),
     ],
 )
 def test_shipped_maps_equal_the_committed_results(shipped, committed):

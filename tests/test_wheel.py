@@ -33,6 +33,7 @@ DATA_FILES = (
     # the bearing files `gfb --bearing NAME` reads
     "gfb_env/data/bearings/table1.toml",
     "gfb_env/data/bearings/small_turbocompressor.toml",
+    "gfb_env/data/hysteresis_map_tasks.csv",
     "gfb_agents/hyperparams/ppo.yml",
     "gfb_agents/hyperparams/sac.yml",
     "gfb_agents/policies/RunUpRandomized_sac/model.zip",

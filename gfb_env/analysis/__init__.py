@@ -42,6 +42,7 @@ from gfb_env.analysis.periodic import (
     continue_periodic_orbits,
     find_periodic_orbit,
     fold_bearing_number,
+    hopf_cycles,
     periodic_orbit_from_simulation,
     settle_whirl,
 )
@@ -98,6 +99,7 @@ __all__ = [
     "dominant_frequency",
     "find_periodic_orbit",
     "fold_bearing_number",
+    "hopf_cycles",
     "jacobian_eigenvalues",
     "linear_stability",
     "load_hysteresis_map",

@@ -31,6 +31,7 @@ from gfb_env.params import BearingParameters, check_positive
 from gfb_env.sweeps import run_sweep
 
 __all__ = [
+    "HYSTERESIS_MAP_TASKS_CSV",
     "MAPS_DATA_DIR",
     "StabilityMap",
     "HysteresisMap",
@@ -50,6 +51,10 @@ __all__ = [
 MAPS_DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 STABILITY_MAP_CSV = "stability_map.csv"
 HYSTERESIS_MAP_CSV = "hysteresis_map.csv"
+#: The environments' nominal bearing on their 31x7 grid (``python -m gfb_experiments.hysteresis_map
+#: --tasks``): the hysteresis band the benchmark's path figure draws.  Kept apart from the paper-grid
+#: map so that the scripted agents, which read that one, are unchanged.
+HYSTERESIS_MAP_TASKS_CSV = "hysteresis_map_tasks.csv"
 
 
 def _cell(v):
@@ -327,10 +332,13 @@ def hysteresis_task(
     grid: str = "79x7",
     n_steps: int = 300,
     coast_down: bool = False,
-    max_points: int = 30,
+    max_points: int | None = None,
+    start: str = "hopf",
 ) -> dict:
-    """One hysteresis-map point: ``Lambda_c``, ``Lambda_fold`` (shooting + continuation), the limit-cycle
-    amplitude at ``Lambda_c`` and optionally the coast-down estimate."""
+    """One hysteresis-map point: ``Lambda_c``, ``Lambda_fold`` (shooting + continuation from the Hopf
+    point, or from the developed whirl with ``start="whirl"``: see
+    :func:`~gfb_env.analysis.periodic.fold_bearing_number`), the limit-cycle amplitude at ``Lambda_c``
+    and optionally the coast-down estimate."""
     model = GFBModel(structure, Grid.parse(grid), foil_stiffness=foil_stiffness)
     cp = critical_bearing_number(model, foil_damping)
     out = cp.as_dict()
@@ -340,12 +348,19 @@ def hysteresis_task(
             "limit_cycle_amplitude_at_critical": math.nan,
             "limit_cycle_max_eccentricity_at_critical": math.nan,
             "whirl_period_at_critical": math.nan,
+            "contact_bearing_number": math.nan,
+            "band_lower_bearing_number": math.nan,
             "fold_message": "",
         }
     )
     try:
         fr = fold_bearing_number(
-            model, foil_damping, critical=cp.critical_bearing_number, n_steps=n_steps, max_points=max_points
+            model,
+            foil_damping,
+            critical=cp.critical_bearing_number,
+            n_steps=n_steps,
+            max_points=max_points,
+            start=start,
         )
         out.update(
             {
@@ -353,6 +368,8 @@ def hysteresis_task(
                 "limit_cycle_amplitude_at_critical": fr.amplitude_at_critical,
                 "limit_cycle_max_eccentricity_at_critical": fr.max_eccentricity_at_critical,
                 "whirl_period_at_critical": fr.period_at_critical,
+                "contact_bearing_number": _nan(fr.contact_bearing_number),
+                "band_lower_bearing_number": fr.band_lower_bearing_number,
                 "fold_message": fr.message,
                 "branch_bearing_number": fr.branch.bearing_number.tolist(),
                 "branch_amplitude": fr.branch.amplitude.tolist(),
@@ -381,6 +398,8 @@ class HysteresisMap:
     fold_bearing_number: np.ndarray
     limit_cycle_amplitude_at_critical: np.ndarray
     coast_down_fold_bearing_number: np.ndarray
+    band_lower_bearing_number: np.ndarray | None = None  # NaN where the map predates the column
+    grid: np.ndarray | None = None  # the grid of each row ("" where the map lacks the column)
 
     def region(self, foil_stiffness: float, foil_damping: float, bearing_number: float) -> str:
         """``"stable"``, ``"bistable"`` or ``"whirl"`` at the nearest mapped ``(K_W, D_W)`` (interpolated
@@ -391,6 +410,22 @@ class HysteresisMap:
         if math.isfinite(lf) and bearing_number >= lf:
             return "bistable"
         return "stable"
+
+    def band_lower(self, foil_stiffness: float, foil_damping: float) -> float:
+        """Lower edge of the hysteresis band (``band_lower_bearing_number``: the fold, or where the
+        unstable cycles reach contact, or ``Lambda_c`` where there is no band) interpolated in
+        ``log D_W`` at the nearest mapped ``K_W`` (clamped to the mapped dampings); NaN where the map
+        lacks the column."""
+        if self.band_lower_bearing_number is None:
+            return math.nan
+        kws = np.unique(self.foil_stiffness)
+        kw = kws[np.argmin(np.abs(np.log(kws) - math.log(foil_stiffness)))]
+        s = (self.foil_stiffness == kw) & np.isfinite(self.band_lower_bearing_number)
+        if not s.any():
+            return math.nan
+        order = np.argsort(self.foil_damping[s])
+        x = np.log(self.foil_damping[s][order])
+        return float(np.interp(math.log(foil_damping), x, self.band_lower_bearing_number[s][order]))
 
     def bounds(self, foil_stiffness: float, foil_damping: float) -> tuple[float, float]:
         """``(Lambda_c, Lambda_fold)`` interpolated in ``log D_W`` at the nearest mapped ``K_W``."""
@@ -419,6 +454,8 @@ _HYST_FIELDS = [
     "structure",
     "grid",
     "fold_message",
+    "contact_bearing_number",
+    "band_lower_bearing_number",
 ]
 
 
@@ -504,4 +541,6 @@ def load_hysteresis_map(path: str | os.PathLike | None = None) -> HysteresisMap:
         fold_bearing_number=col("fold_bearing_number"),
         limit_cycle_amplitude_at_critical=col("limit_cycle_amplitude_at_critical"),
         coast_down_fold_bearing_number=col("coast_down_fold_bearing_number"),
+        band_lower_bearing_number=col("band_lower_bearing_number"),
+        grid=np.array([r.get("grid") or "" for r in rows]),
     )

@@ -17,9 +17,11 @@ recursion (the linearisation of one trapezoidal step)::
     (I - h/2 J_{n+1}) z_{n+1} = (I + h/2 J_n) z_n + (k_n + k_{n+1}) / (2N)      (dphi/dT)
     (I - h/2 J_{n+1}) y_{n+1} = (I + h/2 J_n) y_n + h/2 (k_L,n + k_L,n+1)       (dphi/dLambda)
 
-with the analytic sparse Jacobian ``J_n = J(s_n)``.  One sweep over the orbit stores the sparse LU
-factors of ``I - h/2 J_{n+1}`` (which also serve as the Newton matrix of the next step), after which a
-monodromy-vector product costs only ``N`` sparse triangular solves (~0.05 s on the paper grid).  An
+with the analytic Jacobian ``J_n = J(s_n)``.  One sweep over the orbit stores ``J_n`` and the factors
+of ``I - h/2 J_n`` in the model's block form (periodic block-tridiagonal columns, the rotor as a
+border: the integrator's factorisation; they also serve as the Newton matrix of step ``n``) in a few
+preallocated arrays, after which a monodromy-vector product costs only ``N`` block solves (~0.02 s on
+the paper grid; ~60 MB per sweep there, one sweep alive at a time).  An
 adaptive integrator with finite differences would instead put the step-size control's noise into the
 derivatives, and forming the full ``n x n`` monodromy (``n = 472``) would cost ~100x more than the
 matrix-free products.  The Newton system is bordered and solved matrix-free by GMRES: the bulk of the
@@ -40,6 +42,12 @@ where ``Lambda`` along the branch has a minimum ``Lambda_fold`` and a nontrivial
 minimum (``sigma`` the arclength).  Between ``Lambda_fold`` and ``Lambda_c`` (subcritical Hopf) both the
 equilibrium and the large whirl are stable: the hysteresis band the paper inferred from Fig. 5.
 
+The branch starts at the Hopf point (:func:`hopf_cycles`): the critical eigenvector gives the small
+cycles, shot with ``Lambda`` free at a fixed amplitude, so no transient has to settle on the large
+whirl first (on the coarse grids the developed whirl at ``Lambda_c + 0.01`` closes the film, although
+the fold exists below).  The branch is followed through the unstable cycles, round the fold and up
+the stable whirl to ``Lambda_c``; it stops near contact (min film thickness below 0.01).
+
 A brute-force cross-check, :func:`coast_down_fold`, integrates the developed whirl with the adaptive
 integrator while lowering ``Lambda`` in small steps until it collapses.
 
@@ -54,8 +62,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from numba import njit
 
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.integrator import TrapezoidalIntegrator
@@ -74,6 +82,7 @@ __all__ = [
     "periodic_orbit_from_simulation",
     "continue_periodic_orbits",
     "fold_bearing_number",
+    "hopf_cycles",
     "coast_down_fold",
 ]
 
@@ -85,6 +94,103 @@ class ShootingError(RuntimeError):
 
 
 # ------------------------------------------------------------------------------------------------
+class _StepFactors:
+    """The Jacobians ``J_n`` at the ``N + 1`` mesh points of one sweep and the factors of
+    ``I - h/2 J_n``, in the model's block form, in preallocated arrays (one per kind, indexed by ``n``).
+
+    Why: a sweep needs them all again for every monodromy product.  Stored as 2 x 300 SuperLU and
+    CSR objects per sweep (the first implementation) they took ~107 MB per sweep on 79x7, and their
+    hundreds of separate allocations fragmented the heap so that the freed memory of one sweep was not
+    reused by the next (2.4 GB peak for one ``gfb hysteresis`` run).  The block form (periodic
+    block-tridiagonal columns with the rotor as a border, :func:`gfb_env._kernels.factor_system`, the
+    factorisation the integrator uses) holds ~185 KB per mesh point on 79x7, in a dozen large arrays.
+    """
+
+    def __init__(self, model: GFBModel, n_points: int, hh: float):
+        from gfb_env import _kernels as K
+
+        self._K = K
+        L, g = model.layout, model.grid
+        nc, m = g.n_columns, L.block_size
+        nb = m + 4
+        N = int(n_points)
+        self.model, self.hh = model, float(hh)
+        z = np.zeros
+        self.Ad, self.Ap, self.Am = z((N, nc, m, m)), z((N, nc, m, m)), z((N, nc, m, m))
+        self.Er, self.Rr, self.Srr = z((N, nc, m, 4)), z((N, nc, 4, m)), z((N, 4, 4))
+        self.Dlu, self.Uhat, self.Y = z((N, nc, m, m)), z((N, nc, m, m)), z((N, nc, m, nb))
+        self.Dpiv, self.Slu, self.Spiv = z((N, nc, m), np.int64), z((N, nb, nb)), z((N, nb), np.int64)
+        self._zb = z((nc, m))
+        self._static = (g.n_rows, model.sparse_offdiagonal_blocks, K.size_tag(m))
+        # column unknowns x_i = [P_i0 .. P_i,nr-1, (Q_i)] in state layout, and the rotor
+        nr = g.n_rows
+        col = np.empty((nc, m), dtype=np.int64)
+        col[:, :nr] = np.arange(nc * nr).reshape(nc, nr)
+        if m > nr:
+            col[:, nr] = L.n_pressure + np.arange(nc)
+        self._col = col
+        self._rot = slice(L.rotor_offset, L.size)
+
+    def set(self, n: int, s: np.ndarray, lam: float, dw: float) -> None:
+        """``J_n = J(s)`` and the factors of ``I - h/2 J_n``."""
+        b = {k: getattr(self, k)[n] for k in ("Ad", "Ap", "Am", "Er", "Rr", "Srr")}
+        self.model.jacobian_blocks(s, lam, dw, blocks=b)
+        nr, sparse, tag = self._static
+        ok = self._K.factor_system(
+            self.hh, b["Ad"], b["Ap"], b["Am"], b["Er"], b["Rr"], b["Srr"], self.Dlu[n], self.Dpiv[n],
+            self.Uhat[n], self.Y[n], self.Slu[n], self.Spiv[n], sparse, tag,
+        )  # fmt: skip
+        if not ok:
+            raise ShootingError(f"I - h/2 J is singular at mesh point {n} (h={2 * self.hh:.3g})")
+
+    def solve(self, n: int, rhs: np.ndarray) -> np.ndarray:
+        """``(I - h/2 J_n)^{-1} rhs``."""
+        nr, sparse, tag = self._static
+        x = np.empty_like(rhs)
+        self._K.solve_system(
+            self.hh, self.Am[n], self.Ap[n], self.Rr[n], self.Dlu[n], self.Dpiv[n], self.Uhat[n],
+            self.Y[n], self.Slu[n], self.Spiv[n], nr, rhs, x, self._zb, sparse, tag,
+        )  # fmt: skip
+        return x
+
+    def jac(self, n: int, v: np.ndarray) -> np.ndarray:
+        """``J_n v`` from the blocks."""
+        out = np.empty_like(v)
+        _block_matvec(
+            self.Ad[n], self.Ap[n], self.Am[n], self.Er[n], self.Rr[n], self.Srr[n], self._col,
+            self._rot.start, v, out,
+        )  # fmt: skip
+        return out
+
+
+@njit(cache=True)
+def _block_matvec(Ad, Ap, Am, Er, Rr, Srr, col, r0, v, out):  # pragma: no cover - compiled
+    """``out = J v`` for J in the model's blocks: ``Ad[i]`` couples column ``i`` to itself, ``Ap[i]``
+    to column ``i + 1``, ``Am[i]`` to ``i - 1`` (periodic), ``Er``/``Rr``/``Srr`` the rotor border;
+    ``col[i]`` are the state indices of column ``i``'s unknowns, ``r0`` the first rotor index."""
+    nc, m = col.shape
+    for a in range(4):
+        acc = 0.0
+        for b in range(4):
+            acc += Srr[a, b] * v[r0 + b]
+        out[r0 + a] = acc
+    for i in range(nc):
+        ip = (i + 1) % nc
+        im = (i - 1) % nc
+        for a in range(m):
+            acc = 0.0
+            for b in range(m):
+                acc += Ad[i, a, b] * v[col[i, b]] + Ap[i, a, b] * v[col[ip, b]] + Am[i, a, b] * v[col[im, b]]
+            for b in range(4):
+                acc += Er[i, a, b] * v[r0 + b]
+            out[col[i, a]] = acc
+        for a in range(4):
+            acc = 0.0
+            for b in range(m):
+                acc += Rr[i, a, b] * v[col[i, b]]
+            out[r0 + a] += acc
+
+
 class _OrbitSweep:
     """Fixed-step trapezoidal sweep ``s0 -> phi_T(s0)``, storing the factors for the variational products."""
 
@@ -102,13 +208,12 @@ class _OrbitSweep:
         n = model.layout.size
         self.N = N = int(n_steps)
         self.h = h = period / N
-        I = sp.identity(n, format="csc")
-        self.Js: list[sp.csr_matrix] = []
-        self.lus: list = []
+        # mesh point i holds J(s_i) and the factors of I - h/2 J(s_i): the Newton matrix of step i and
+        # the implicit side of the variational recursion of step i - 1
+        self.factors = F = _StepFactors(model, N + 1, 0.5 * h)
         s = np.array(s0, dtype=float)
         k = model.rhs(s, lam, dw)
-        J = model.jacobian(s, lam, dw)
-        lu = spla.splu((I - 0.5 * h * J).tocsc())
+        F.set(0, s, lam, dw)
         self.rotor = np.empty((N + 1, 4))
         self.min_film = np.empty(N + 1)
         L = model.layout
@@ -130,30 +235,26 @@ class _OrbitSweep:
                     if not np.all(np.isfinite(kx)):
                         break
                     r = x - s - 0.5 * h * (k + kx)
-                    dx = lu.solve(-r)
+                    dx = F.solve(i, -r)
                     x = x + dx
                     if np.max(np.abs(dx)) <= 1e-12 * (1.0 + np.max(np.abs(x))):
                         ok = True
                         break
                 if ok:
                     break
-                # refresh the Newton matrix at the (possibly poor) iterate and start again
+                # start again from the explicit Euler predictor (the Newton matrix is J(s) already)
                 x = s + h * k
-                lu = spla.splu((I - 0.5 * h * model.jacobian(s, lam, dw)).tocsc())
             if not ok or model.min_film_thickness(x) <= 0:
                 raise ShootingError(f"trapezoidal step {i} of {N} did not converge (h={h:.3g})")
             kx = model.rhs(x, lam, dw)
-            Jx = model.jacobian(x, lam, dw)
-            lu = spla.splu((I - 0.5 * h * Jx).tocsc())
+            F.set(i + 1, x, lam, dw)
             # variational recursion for dphi/dT (and dphi/dLambda)
-            zT = lu.solve(zT + 0.5 * h * (J @ zT) + (k + kx) / (2 * N))
+            zT = F.solve(i + 1, zT + 0.5 * h * F.jac(i, zT) + (k + kx) / (2 * N))
             if need_dlam:
                 kLx = (model.rhs(x, lam + d, dw) - model.rhs(x, lam - d, dw)) / (2 * d)
-                zL = lu.solve(zL + 0.5 * h * (J @ zL) + 0.5 * h * (kL + kLx))
+                zL = F.solve(i + 1, zL + 0.5 * h * F.jac(i, zL) + 0.5 * h * (kL + kLx))
                 kL = kLx
-            self.Js.append(J)
-            self.lus.append(lu)
-            s_prev, s, k, J = s, x, kx, Jx
+            s_prev, s, k = s, x, kx
             self.rotor[i + 1] = L.rotor(s)
             self.min_film[i + 1] = model.min_film_thickness(s)
         self.end = s
@@ -164,9 +265,12 @@ class _OrbitSweep:
     def monodromy_product(self, X: np.ndarray) -> np.ndarray:
         """``M X`` for a vector or an ``(n, m)`` block."""
         Y = np.array(X, dtype=float)
+        if Y.ndim == 2:
+            return np.column_stack([self.monodromy_product(c) for c in Y.T])
         hh = 0.5 * self.h
-        for J, lu in zip(self.Js, self.lus):
-            Y = lu.solve(Y + hh * (J @ Y))
+        F = self.factors
+        for i in range(self.N):
+            Y = F.solve(i + 1, Y + hh * F.jac(i, Y))
         return Y
 
     def operator(self) -> spla.LinearOperator:
@@ -318,6 +422,9 @@ def _newton_shoot(model, s0, T, lam, dw, n_steps, tol, max_iterations, tangent=N
         # damp steps that would move the rotor by more than 0.2 clearances
         step = np.max(np.abs(dv[L.rotor_slice])) if n > 4 else 0.0
         alpha = min(1.0, 0.2 / step) if step > 0 else 1.0
+        # drop this sweep (and the operator holding it) before the next one is built: two sweeps'
+        # stored factors alive at once double the peak memory
+        sw = A = matvec = None
         s0 = s0 + alpha * dv[:n]
         T = T + alpha * _T_SCALE * dv[n]
         if free:
@@ -549,21 +656,37 @@ def continue_periodic_orbits(
     floquet: bool = True,
     points_after_fold: int = 1,
     progress: bool = False,
+    second: PeriodicOrbit | None = None,
+    stop_bearing_number: float | None = None,
+    min_film_thickness: float = 0.01,
 ) -> CycleBranch:
     """Pseudo-arclength continuation of a branch of cycles from ``orbit``, first in the direction
     ``sign(first_step)`` of ``Lambda`` (a natural-parameter step of ``first_step`` gives the second
     point and the first secant), until the fold of cycles is passed (``Lambda`` along the branch turns
     back) plus ``points_after_fold`` points, ``Lambda < min_bearing_number`` or ``max_points``.
+
+    ``second``: the branch's second point, given (e.g. the second of :func:`hopf_cycles`); the first
+    secant is then ``orbit -> second`` and ``first_step`` is not used.  ``stop_bearing_number``:
+    instead of ``points_after_fold`` points past the fold, continue until the branch, rising in
+    ``Lambda`` (after any folds), passes it: e.g. just above ``Lambda_c`` for a branch from the Hopf
+    point, which then holds the fold and the stable whirl at ``Lambda_c``.
+    ``min_film_thickness``: stop once a cycle comes this close to contact (the coarse grids' discrete
+    film pressure then loses positivity and the sweeps fail one after another at ever smaller steps).
     """
-    if first_step == 0 or not math.isfinite(first_step):
+    if second is None and (first_step == 0 or not math.isfinite(first_step)):
         raise ValueError(f"first_step must be a non-zero finite number, got {first_step!r}")
     dw = orbit.foil_damping
     n_steps = orbit.n_steps
     orbits = [orbit]
-    lam1 = orbit.bearing_number + first_step
-    o2 = find_periodic_orbit(
-        model, lam1, dw, orbit.state, orbit.period, n_steps=n_steps, tol=tol, floquet=floquet
-    )
+    if second is None:
+        lam1 = orbit.bearing_number + first_step
+        second = find_periodic_orbit(
+            model, lam1, dw, orbit.state, orbit.period, n_steps=n_steps, tol=tol, floquet=floquet
+        )
+    elif second.n_steps != n_steps or second.foil_damping != dw:
+        raise ValueError("second must have the n_steps and foil_damping of orbit")
+    o2 = second
+    sign = 1.0 if o2.bearing_number > orbit.bearing_number else -1.0
     orbits.append(o2)
     ds = float(np.linalg.norm(_u(o2) - _u(orbit)))
     message = "max_points reached"
@@ -598,12 +721,18 @@ def continue_periodic_orbits(
             except ShootingError:
                 ds *= 0.5
                 if ds < 1e-4:
-                    message = "step size underflow"
+                    last = orbits[-1]
+                    message = (
+                        f"step size underflow: the branch could not be continued past Lambda="
+                        f"{last.bearing_number:.5g} (amplitude {last.amplitude:.3g}, min film thickness "
+                        f"{last.min_film_thickness:.3g})"
+                    )
                     break
         if ds < 1e-4:
             break
         mu = _floquet(sw) if floquet else np.zeros(0, dtype=complex)
         orb = PeriodicOrbit(lam, dw, T, s0, n_steps, res, its, mu, sw.rotor.copy(), sw.min_film.copy())
+        sw = None  # the sweep's stored factors are large: free them before the next point
         orbits.append(orb)
         lams = [o.bearing_number for o in orbits]
         dl = np.diff(lams)
@@ -611,7 +740,17 @@ def continue_periodic_orbits(
             turned = 1
         elif turned:
             turned += 1
-        if turned > points_after_fold:
+        if orb.min_film_thickness < min_film_thickness:
+            message = (
+                f"near contact: the cycle at Lambda={lam:.5g} (amplitude {orb.amplitude:.3g}) has min film "
+                f"thickness {orb.min_film_thickness:.3g} < {min_film_thickness:g}"
+            )
+            break
+        if stop_bearing_number is not None:
+            if dl[-1] > 0 and lam >= stop_bearing_number:
+                message = "fold passed" if turned else f"rose past Lambda={stop_bearing_number:.5g}"
+                break
+        elif turned > points_after_fold:
             message = "fold passed"
             break
         if lam < min_bearing_number:
@@ -623,7 +762,7 @@ def continue_periodic_orbits(
             ds *= 0.6
     if bar is not None:
         bar.close()
-    fold, famp = _fold_from_branch(orbits, sign=np.sign(first_step))
+    fold, famp = _fold_from_branch(orbits, sign=sign)
     return CycleBranch(orbits, fold, famp, message)
 
 
@@ -651,7 +790,13 @@ def _fold_from_branch(orbits: list[PeriodicOrbit], sign: float) -> tuple[float |
 # ------------------------------------------------------------------------------------------------
 @dataclass
 class FoldResult:
-    """Fold of cycles of one configuration (:func:`fold_bearing_number`)."""
+    """Fold of cycles of one configuration (:func:`fold_bearing_number`).
+
+    ``fold_bearing_number``: the lowest ``Lambda`` of the branch of cycles where it folds (None: no
+    fold).  ``contact_bearing_number``: where a subcritical branch has no fold, the lowest ``Lambda``
+    of its unstable cycles before they reach contact (None otherwise).  ``band_lower_bearing_number``
+    combines them into the lower edge of the hysteresis band.
+    """
 
     critical_bearing_number: float
     fold_bearing_number: float | None
@@ -660,12 +805,107 @@ class FoldResult:
     period_at_critical: float
     branch: CycleBranch | None = field(repr=False)
     message: str = ""
+    contact_bearing_number: float | None = None
 
     @property
     def subcritical(self) -> bool | None:
         if self.fold_bearing_number is None:
             return None
         return self.fold_bearing_number < self.critical_bearing_number
+
+    @property
+    def band_lower_bearing_number(self) -> float:
+        """Lower edge of the hysteresis band, the region below ``Lambda_c`` where a large enough
+        disturbance does not die out: the fold of cycles where the branch has one below ``Lambda_c``
+        (the whirl persists above it); else ``contact_bearing_number``, the lowest ``Lambda`` of a
+        branch of unstable cycles that runs into contact without folding (above it such a disturbance
+        ends in touchdown); else ``Lambda_c`` (no band)."""
+        lc = self.critical_bearing_number
+        if self.fold_bearing_number is not None and self.fold_bearing_number < lc:
+            return self.fold_bearing_number
+        if self.contact_bearing_number is not None and self.contact_bearing_number < lc:
+            return self.contact_bearing_number
+        return lc
+
+
+def _critical_mode(model: GFBModel, dw: float, lam_c: float) -> tuple[np.ndarray, float, np.ndarray]:
+    """``(s_eq, omega, v)`` at the Hopf point: the equilibrium and the rightmost oscillatory
+    eigenpair ``i omega, v`` of its Jacobian."""
+    import scipy.linalg as sla
+
+    s_eq = find_equilibrium(model, lam_c)
+    ev, V = sla.eig(model.jacobian(s_eq, lam_c, dw).toarray(), check_finite=False)
+    osc = np.flatnonzero(ev.imag > 1e-8)
+    if len(osc) == 0:
+        raise ShootingError(f"no oscillatory eigenvalue at Lambda_c={lam_c:.5g}: no Hopf point")
+    j = osc[np.argmax(ev.real[osc])]
+    return s_eq, float(ev[j].imag), V[:, j]
+
+
+def hopf_cycles(
+    model: GFBModel,
+    foil_damping: float,
+    critical: float,
+    amplitudes: tuple[float, float] = (0.05, 0.1),
+    n_steps: int = 600,
+    tol: float = 1e-8,
+    floquet: bool = True,
+) -> list[PeriodicOrbit]:
+    """The first two cycles of the branch born at the Hopf point ``Lambda_c = critical``.
+
+    At the Hopf point the critical eigenpair ``lambda = i omega``, ``v`` of the Jacobian gives the
+    small cycle ``s(tau) ~ s_eq + a Re(v e^{i omega tau})`` of period ``2 pi / omega`` (Kuznetsov,
+    Sect. 3.5).  With ``v`` scaled so that its ``xi`` entry is 1, ``tau = 0`` is a maximum of ``xi``
+    (``xi' = 0``: the phase condition).  Each cycle is shot with ``Lambda`` free and the arclength
+    equation ``w . (s0 - s_eq) = a |w|^2`` along ``w = Re(v)``, which fixes the amplitude ``a`` instead
+    of ``Lambda``: the side of ``Lambda_c`` the branch lies on (below: subcritical) comes out of the
+    Newton iteration, not from a guess.  Nothing is integrated to a settled whirl first, so this works
+    where the developed whirl closes the film (the coarse grids), and for the unstable cycles of the
+    band.
+
+    Args:
+        critical: ``Lambda_c`` (e.g. from :func:`gfb_env.analysis.critical_bearing_number`).
+        amplitudes: the two amplitudes ``a`` (clearances of ``xi``), small enough for the linear
+            shape to be a good guess.
+
+    Raises:
+        ShootingError: no complex critical eigenpair, or the shooting did not converge.
+    """
+    dw = check_positive("foil_damping", foil_damping)
+    lam_c = check_positive("critical", critical)
+    if len(amplitudes) != 2 or not all(math.isfinite(a) and a > 0 for a in amplitudes):
+        raise ValueError(f"amplitudes must be two positive numbers, got {amplitudes!r}")
+    L = model.layout
+    n = L.size
+    s_eq, omega, v = _critical_mode(model, dw, lam_c)
+    if abs(v[L.xi_index]) == 0:
+        raise ShootingError("the critical mode does not move the journal horizontally")
+    w = (v / v[L.xi_index]).real  # xi entry 1 (real), so xi' = Re(i omega) = 0 at tau = 0
+    t = np.concatenate([w, [0.0, 0.0]])
+    t /= np.linalg.norm(t)
+    u_hopf = np.concatenate([s_eq, [2 * math.pi / omega / _T_SCALE, lam_c]])
+    out = []
+    for a in amplitudes:
+        u_pred = u_hopf.copy()
+        u_pred[:n] += a * w
+        sw, s0, T, lam, its, res = _newton_shoot(
+            model,
+            u_pred[:n],
+            u_pred[n] * _T_SCALE,
+            lam_c,
+            dw,
+            int(n_steps),
+            tol,
+            15,
+            tangent=t,
+            u_pred=u_pred,
+        )
+        mu = _floquet(sw) if floquet else np.zeros(0, dtype=complex)
+        out.append(
+            PeriodicOrbit(lam, dw, T, s0, int(n_steps), res, its, mu, sw.rotor.copy(), sw.min_film.copy())
+        )
+        sw = None
+    return out
 
 
 def fold_bearing_number(
@@ -674,45 +914,97 @@ def fold_bearing_number(
     critical: float | None = None,
     offset: float = 0.01,
     n_steps: int = 600,
-    max_points: int = 30,
+    max_points: int | None = None,
     progress: bool = False,
+    start: str = "hopf",
 ) -> FoldResult:
-    """``Lambda_fold``: start on the whirl that develops at ``Lambda_c + offset`` (integrated from a kicked
-    equilibrium by :func:`settle_whirl`), shoot it, and continue the cycle branch downwards in ``Lambda``
-    round the fold (:func:`continue_periodic_orbits`).  The limit-cycle amplitude at ``Lambda_c`` is taken
-    from the branch (linear interpolation).
+    """``Lambda_fold``, the lowest ``Lambda`` of the branch of cycles born at the Hopf point.
+
+    ``start="hopf"`` (default): the branch starts at the Hopf point (:func:`hopf_cycles`: the small
+    unstable cycles) and is continued by pseudo-arclength round the fold and back up to ``Lambda_c``
+    on the stable large cycles (:func:`continue_periodic_orbits`).  ``start="whirl"``: the branch
+    starts on the whirl that develops at ``Lambda_c + offset`` (integrated from a kicked equilibrium by
+    :func:`settle_whirl`) and is continued downwards round the fold; that fails where the developed
+    whirl closes the film before it settles (31x7 and 21x5 at ``K_W = 1, D_W = 1``: the transient
+    reaches min H ~ 0.003 with P -> 0 and the step size collapses, although the fold and the stable
+    cycles at it exist).  Both give the same fold where both work.
+
+    The limit-cycle amplitude (and max eccentricity, period) at ``Lambda_c`` is interpolated on the
+    stable part of the branch (beyond the fold), NaN where that part does not reach ``Lambda_c``
+    (the cycle closes the film first; the message says so).  At a supercritical Hopf point the branch
+    rises in ``Lambda`` from amplitude 0; it is followed to ``Lambda_c + offset`` and a fold is
+    reported only if it turns back below ``Lambda_c`` on the way.  A subcritical branch that reaches
+    contact (min film thickness 0.01) without folding gives ``contact_bearing_number`` instead (21x5 at
+    ``K_W = 1, D_W = 1``; the tasks' foil on 31x7 at ``D_W <= 0.5``).
 
     Raises:
-        ShootingError: when no whirl settles or the first shooting fails.
+        ShootingError: no whirl settles (``"whirl"``), or the first cycles cannot be shot.
     """
     from gfb_env.analysis.stability import critical_bearing_number
 
     dw = check_positive("foil_damping", foil_damping)
+    if start not in ("hopf", "whirl"):
+        raise ValueError(f"start must be 'hopf' or 'whirl', got {start!r}")
     if critical is None:
         critical = critical_bearing_number(model, dw).critical_bearing_number
-    lam0 = critical + offset
-    sw = settle_whirl(
-        model, lam0, dw, kick=0.3, tau_max=8000, integrator_options={"touchdown_film_thickness": 1e-4}
-    )
-    if sw.status != "whirl":
-        raise ShootingError(f"no settled whirl at Lambda={lam0:.4g} (status {sw.status})")
-    o = periodic_orbit_from_simulation(model, lam0, dw, sw.state, sw.period, n_steps=n_steps)
-    br = continue_periodic_orbits(
-        model, o, first_step=-min(offset, 0.01), max_points=max_points, progress=progress
-    )
-    lams, amps = br.bearing_number, br.amplitude
-    eps = np.array([x.max_eccentricity for x in br.orbits])
-    per = np.array([x.period for x in br.orbits])
-    # the stable (upper) part: before the fold
-    j = int(np.argmin(lams)) + 1 if br.fold_bearing_number is not None else len(lams)
-    ls, order = lams[:j], np.argsort(lams[:j])
+    contact = None
+    amp = eps = per = math.nan
+    if start == "whirl":
+        lam0 = critical + offset
+        sw = settle_whirl(
+            model, lam0, dw, kick=0.3, tau_max=8000, integrator_options={"touchdown_film_thickness": 1e-4}
+        )
+        if sw.status != "whirl":
+            raise ShootingError(f"no settled whirl at Lambda={lam0:.4g} (status {sw.status})")
+        o = periodic_orbit_from_simulation(model, lam0, dw, sw.state, sw.period, n_steps=n_steps)
+        sw = None
+        br = continue_periodic_orbits(
+            model, o, first_step=-min(offset, 0.01), max_points=max_points or 30, progress=progress
+        )
+        # the stable (upper) part: before the fold
+        j = int(np.argmin(br.bearing_number)) + 1 if br.fold_bearing_number is not None else len(br.orbits)
+        upper = br.orbits[:j]
+    else:
+        o1, o2 = hopf_cycles(model, dw, critical, n_steps=n_steps)
+        br = continue_periodic_orbits(
+            model,
+            o1,
+            second=o2,
+            max_points=max_points or 60,
+            progress=progress,
+            stop_bearing_number=critical + offset,
+        )
+        # the band's lower edge is the lowest Lambda of the branch (a supercritical Hopf point's branch
+        # rises first and may still fold back below Lambda_c further on)
+        br.fold_bearing_number, br.fold_amplitude = _fold_from_branch(br.orbits, -1.0)
+        upper = []
+        if br.fold_bearing_number is not None:
+            upper = br.orbits[int(np.argmin(br.bearing_number)) :]  # the stable whirl: from the fold on
+        elif o2.bearing_number > o1.bearing_number:
+            amp = 0.0  # supercritical: the cycles grow from zero amplitude at Lambda_c
+            per = 2 * math.pi / _critical_mode(model, dw, critical)[1]
+        elif br.orbits[-1].min_film_thickness < 0.02:
+            # subcritical without a fold: the unstable cycles run into contact
+            contact = float(br.bearing_number.min())
+    ls = np.array([x.bearing_number for x in upper])
+    message = br.message
+    if len(ls) and ls.min() <= critical <= ls.max():
+        order = np.argsort(ls)
 
-    def interp(v):
-        return float(np.interp(critical, ls[order], v[:j][order]))
+        def interp(v):
+            return float(np.interp(critical, ls[order], np.asarray(v)[order]))
 
-    return FoldResult(
-        critical, br.fold_bearing_number, interp(amps), interp(eps), interp(per), br, br.message
-    )
+        amp = interp([x.amplitude for x in upper])
+        eps = interp([x.max_eccentricity for x in upper])
+        per = interp([x.period for x in upper])
+    elif br.fold_bearing_number is not None:
+        message += "; the stable cycles do not reach Lambda_c (no amplitude there)"
+    if contact is not None:
+        message += (
+            f"; no fold: the unstable cycles reach contact at Lambda={contact:.5g} (the band's lower edge: "
+            "above it a large disturbance ends in touchdown)"
+        )
+    return FoldResult(critical, br.fold_bearing_number, amp, eps, per, br, message, contact)
 
 
 # ------------------------------------------------------------------------------------------------

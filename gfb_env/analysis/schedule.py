@@ -5,8 +5,9 @@ The method, for a viscoelastic foil (paper Sect. 3.2-3.4):
 1. ``Lambda_c(D_W)`` on a log grid of dampings (:func:`~gfb_env.analysis.task_constants.
    critical_bearing_numbers_on_grid`: one equilibrium per Lambda serves every damping).
 2. At the dampings with the highest ``Lambda_c`` the fold of cycles ``Lambda_fold(D_W)`` (shooting and
-   continuation, :func:`~gfb_env.analysis.periodic.fold_bearing_number`): below the fold no whirl cycle
-   exists; between the fold and ``Lambda_c`` (the hysteresis band) the equilibrium is stable but a
+   continuation, :func:`~gfb_env.analysis.periodic.fold_bearing_number`; where the unstable cycles
+   reach contact without folding, the lowest of them: the band's lower edge): below the fold no whirl
+   cycle exists; between the fold and ``Lambda_c`` (the hysteresis band) the equilibrium is stable but a
    large enough disturbance or unbalance throws the rotor onto the whirl.
 3. The safe speed of a damping is ``min((1 - margin) Lambda_c, Lambda_fold)``: a margin from the linear
    stability boundary *and* outside the hysteresis band (where the fold could not be computed, or
@@ -251,7 +252,9 @@ def design_run_up_schedule(
             cp = critical_bearing_number(model, d, bearing_range=(lam_lo, lam_hi))
             crit[j] = cp.critical_bearing_number
             fr = fold_bearing_number(model, d, critical=crit[j])
-            fold = fr.fold_bearing_number if fr.subcritical else None
+            # the band's lower edge: the fold, or where the unstable cycles reach contact (no fold)
+            band = fr.band_lower_bearing_number
+            fold = band if band < crit[j] else None
         except (ShootingError, StabilityAnalysisError) as exc:
             notes.append(f"fold at D_W={d:.3g} not found ({type(exc).__name__}: {exc})")
             fold = None

@@ -32,8 +32,8 @@ from gfb_env.scripting import (
 __all__ = ["register", "cmd_critical", "cmd_hysteresis", "cmd_map"]
 
 _FMT = argparse.RawDescriptionHelpFormatter
-#: Largest ``--n-steps``: the shooting sweep keeps a sparse Jacobian and its LU per step (measured
-#: 0.26 MB a step on 79x7, 1.7 MB on 157x13), so 2000 steps hold 0.5 GB / 3.4 GB.
+#: Largest ``--n-steps``: the shooting sweep keeps the Jacobian and its factors per step in block form
+#: (0.18 MB a step on 79x7, 1.3 MB on 157x13), so 2000 steps hold 0.4 GB / 2.6 GB.
 MAX_SHOOTING_STEPS = 2000
 
 
@@ -110,8 +110,9 @@ def cmd_hysteresis(args: argparse.Namespace) -> int:
             n_steps=args.n_steps,
             progress=not args.json,
         )
-    except ShootingError as exc:
-        raise ValueError(f"no limit cycle could be computed: {exc}") from None
+    except ShootingError as exc:  # a computation failure, not bad input: exit 1 (2 is for bad input)
+        print(f"gfb hysteresis: error: no limit cycle could be computed: {exc}", file=sys.stderr)
+        return 1
     d.update(
         {
             "fold_bearing_number": fr.fold_bearing_number,
@@ -124,6 +125,8 @@ def cmd_hysteresis(args: argparse.Namespace) -> int:
             "limit_cycle_max_eccentricity_at_critical": fr.max_eccentricity_at_critical,
             "whirl_period_at_critical": fr.period_at_critical,
             "subcritical": fr.subcritical,
+            "contact_bearing_number": fr.contact_bearing_number,
+            "band_lower_bearing_number": fr.band_lower_bearing_number,
             "continuation_message": fr.message,
         }
     )
@@ -150,15 +153,17 @@ def cmd_hysteresis(args: argparse.Namespace) -> int:
             "  fold of cycles   Lambda_fold = "
             + ("not found" if lf is None else f"{lf:.5f} ({d['fold_speed_rpm']:.0f} rpm)")
         )
-        if lf is not None:
-            kind = "subcritical: bistable band" if lf < cp.critical_bearing_number else "no hysteresis"
-            print(f"  {kind} [{lf:.4f}, {cp.critical_bearing_number:.4f}]")
+        if lf is not None or fr.contact_bearing_number is not None:
+            lo = fr.band_lower_bearing_number
+            kind = "subcritical: bistable band" if lo < cp.critical_bearing_number else "no hysteresis"
+            print(f"  {kind} [{lo:.4f}, {cp.critical_bearing_number:.4f}]")
         print(
             f"  limit cycle at Lambda_c: amplitude {fr.amplitude_at_critical:.4f}, "
             f"max eps {fr.max_eccentricity_at_critical:.4f}, period {fr.period_at_critical:.3f}"
         )
         if "coast_down_fold_bearing_number" in d:
             print(f"  coast-down estimate of Lambda_fold = {d['coast_down_fold_bearing_number']}")
+        print(f"  continuation: {fr.message}")
         print(f"  ({d['wall_time_s']:.1f} s)")
     return 0
 
@@ -259,16 +264,18 @@ def register(subparsers) -> None:
         help="Lambda_c and the fold of cycles Lambda_fold (hysteresis band) by shooting",
         description=(
             "Hysteresis band of the subcritical Hopf bifurcation: Lambda_c from the eigenvalues, then\n"
-            "the whirl at Lambda_c + 0.01 is integrated until it settles, converged by shooting\n"
-            "(Newton on the initial state and the period, fixed-step trapezoidal map with exact\n"
-            "variational equations) and continued in Lambda by pseudo-arclength round the fold of\n"
-            "cycles Lambda_fold.  For Lambda_fold < Lambda < Lambda_c both the equilibrium and the\n"
-            "whirl are stable.  Takes about a minute on the paper grid.\n\n"
+            "the small cycles born at the Hopf point (from its critical eigenvector) are converged by\n"
+            "shooting (Newton on the initial state, the period and Lambda, fixed-step trapezoidal map\n"
+            "with exact variational equations) and continued by pseudo-arclength round the fold of\n"
+            "cycles Lambda_fold and back up to Lambda_c on the stable whirl.  For Lambda_fold < Lambda <\n"
+            "Lambda_c both the equilibrium and the whirl are stable.  Takes ~10 s on 31x7, about a\n"
+            "minute on the paper grid.  Exit 1 (one line) when no cycle can be computed.\n\n"
             "JSON adds to the `critical` keys: fold_bearing_number, fold_speed_rpm,\n"
             "limit_cycle_amplitude_at_critical (half peak-to-peak xi),\n"
             "limit_cycle_max_eccentricity_at_critical,\n"
-            "whirl_period_at_critical, subcritical, continuation_message and, with --coast-down,\n"
-            "coast_down_fold_bearing_number."
+            "whirl_period_at_critical, subcritical, contact_bearing_number (no fold: where the unstable\n"
+            "cycles reach contact), band_lower_bearing_number (the band's lower edge),\n"
+            "continuation_message and, with --coast-down, coast_down_fold_bearing_number."
         ),
     )
     _add_common(p)

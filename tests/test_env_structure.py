@@ -17,8 +17,7 @@ from gfb_env.envs.config import CONTROL_INTERVAL_RANGE, EnvConfig
 from gfb_env.envs.episode import StepOutcome, TerminationReason
 from gfb_env.envs.rewards import WHIRL_AMPLITUDE_CAP, RunUpReward, WhirlRecoveryReward
 from gfb_env.envs.units import OBS_DAMPING, OBS_SPEED, ActionMap, ObservationLayout
-from gfb_env.integrator import IntegrationError
-from gfb_env.integrator_options import IntegratorOptions
+from gfb_env.integrator import IntegrationError, IntegratorOptions
 
 FAST = {"control_interval": 20.0}
 

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from gfb_env.envs._data import NOMINAL_BEARING
-from gfb_env.integrator_options import IntegratorOptions
+from gfb_env.integrator import IntegratorOptions
 from gfb_env.machine import (
     FoilDampingActuator,
     Motor,

@@ -70,7 +70,7 @@ from gfb_env.equilibrium import EquilibriumError, find_equilibrium  # re-exporte
 from gfb_env.forcing import HalfSineShock, Unbalance
 from gfb_env.forcing import shock_acceleration as _shock_acceleration
 from gfb_env.forcing import unbalance_acceleration as _unbalance_acceleration
-from gfb_env.integrator_options import IntegratorOptions
+from gfb_env.integrator.options import IntegratorOptions
 from gfb_env.model import GFBModel
 
 __all__ = [

@@ -85,8 +85,14 @@ class CaseResult:
 
 
 def _counts(res) -> list[int]:
-    return [res.steps, res.rejected_steps, res.newton_failures, res.jacobians, res.factorizations] + [
-        res.rhs_evaluations
+    st = res.statistics
+    return [
+        st.steps,
+        st.rejected_steps,
+        st.newton_failures,
+        st.jacobians,
+        st.factorizations,
+        st.rhs_evaluations,
     ]
 
 
@@ -182,10 +188,10 @@ def case_snapshot() -> CaseResult:
     m, s0 = _small()
     it = TrapezoidalIntegrator(m, m.layout.with_rotor(s0, 0.3, 0.4), 0.6, 1.0)
     it.advance(30.0, bearing_number=0.65)
-    snap = it.get_state()
+    snap = it.snapshot()
     out = _result_items("snap_a", it, it.advance(60.0, bearing_number=0.7, record_interval=0.5))
     it.advance(90.0)
-    it.set_state(snap)
+    it.restore(snap)
     out |= _result_items("snap_b", it, it.advance(60.0, bearing_number=0.7, record_interval=0.5))
     return out
 

@@ -119,9 +119,9 @@ def test_integrator_options_reach_the_integrator_and_the_touchdown_threshold_is_
         "gfb_env/WhirlRecovery-v0", integrator_options={"rtol": 1e-3}, touchdown_film_thickness=0.05, **FAST
     ).unwrapped
     env.reset(seed=0)
-    assert env._integ.rtol == 1e-3
-    assert env._integ.touchdown_film_thickness == 0.05
-    assert IntegratorOptions.from_mapping({"rtol": 1e-3}).as_kwargs()["atol"] == IntegratorOptions().atol
+    assert env._integ.options.rtol == 1e-3
+    assert env._integ.options.touchdown_film_thickness == 0.05
+    assert IntegratorOptions.from_mapping({"rtol": 1e-3}).atol == IntegratorOptions().atol
 
 
 @pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v0", "gfb_env/WhirlRecovery-v0"])

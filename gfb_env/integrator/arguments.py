@@ -1,6 +1,6 @@
 """The compiled loop's arguments: the one owner of their grouping, packing and unpacking.
 
-One call of the loop (:func:`~gfb_env.integrator.stages.advance_loop`) takes named groups: the
+One call of the loop (:func:`~gfb_env.integrator.stages._advance`) takes named groups: the
 integrator's arrays ``y`` and ``clock`` (:class:`~gfb_env.integrator.StepperState`), the ``schedule``,
 the model's kernel arguments, :class:`Jacobian`, :class:`Factorization`, :class:`LoopOptions`,
 :class:`Recording`, the counter and extreme vectors, and :class:`Forcing` (or None).  numba passes
@@ -9,7 +9,7 @@ NamedTuples by value; the arrays in them are shared.
 A batch (:mod:`gfb_env.integrator.batch`) stacks the groups of many calls: every array group gains a
 leading env axis (:class:`BatchArrays`), and every scalar of a call (its clock, schedule, options,
 recording window, forcing and status) is one row of the structured array :data:`CALL_DTYPE`, whose
-fields are named after the groups' fields.  :func:`call_row` packs one :class:`PreparedCall`-like call
+fields are named after the groups' fields.  :func:`call_row` packs one prepared call
 into a row (Python) and :func:`unpack_row` rebuilds the loop's scalar groups from it (compiled), so the
 single call and each env of a batch pass the same groups of the same types to the same compiled loop.
 """
@@ -32,6 +32,7 @@ __all__ = [
     "Recording",
     "SCHEDULE_FIELDS",
     "call_row",
+    "store_clock",
     "unpack_row",
 ]
 

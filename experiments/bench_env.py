@@ -155,7 +155,7 @@ def _subproc_rate(env_id: str, action: np.ndarray, n: int, env_steps: int, seed:
 
 class _CompiledClock:
     """Wall time spent in the compiled batch call (``BatchAdvance._launch``: numba's launch of
-    :func:`gfb_env.integrator._advance_batch` and the envs' compiled loops)."""
+    :func:`gfb_env.integrator.batch._advance_batch` and the envs' compiled loops)."""
 
     def __init__(self) -> None:
         from gfb_env.integrator import BatchAdvance
@@ -220,9 +220,9 @@ def _native_profile(env_id: str, action: np.ndarray, n: int, env_steps: int, see
 
 
 def _single_cpu_profile(env_id: str, action: np.ndarray, env_steps: int, seed: int) -> dict:
-    """One env's CPU time per step: the compiled call (``gfb_env.integrator._call_compiled``) and the
-    Python around it."""
-    import gfb_env.integrator as integrator
+    """One env's CPU time per step: the compiled call (``gfb_env.integrator.stepper._call_compiled``)
+    and the Python around it."""
+    import gfb_env.integrator.stepper as integrator  # (its advance calls _call_compiled)
 
     original, spent = integrator._call_compiled, [0.0]
 

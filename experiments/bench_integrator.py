@@ -48,9 +48,9 @@ def run_ours(model, s0) -> dict:
         "wall_s": wall,
         "steps": res.steps,
         "max_eccentricity": amp,
-        "jacobians": res.jacobians,
-        "factorizations": res.factorizations,
-        "rhs_evaluations": res.rhs_evaluations,
+        "jacobians": res.statistics.jacobians,
+        "factorizations": res.statistics.factorizations,
+        "rhs_evaluations": res.statistics.rhs_evaluations,
     }
 
 

@@ -17,8 +17,7 @@ from gfb_env.envs.config import CONTROL_INTERVAL_RANGE, EnvConfig
 from gfb_env.envs.episode import StepOutcome, TerminationReason
 from gfb_env.envs.rewards import WHIRL_AMPLITUDE_CAP, CommandedSpeedReward
 from gfb_env.envs.units import OBS_DAMPING, OBS_SPEED, ActionMap, ObservationLayout
-from gfb_env.integrator import IntegrationError
-from gfb_env.integrator_options import IntegratorOptions
+from gfb_env.integrator import IntegrationError, IntegratorOptions
 
 FAST = {"control_interval": 20.0}
 
@@ -105,9 +104,9 @@ def test_integrator_options_reach_the_integrator_and_the_touchdown_threshold_is_
         "gfb_env/WhirlRecovery-v1", integrator_options={"rtol": 1e-3}, touchdown_film_thickness=0.05, **FAST
     ).unwrapped
     env.reset(seed=0)
-    assert env._integ.rtol == 1e-3
-    assert env._integ.touchdown_film_thickness == 0.05
-    assert IntegratorOptions.from_mapping({"rtol": 1e-3}).as_kwargs()["atol"] == IntegratorOptions().atol
+    assert env._integ.options.rtol == 1e-3
+    assert env._integ.options.touchdown_film_thickness == 0.05
+    assert IntegratorOptions.from_mapping({"rtol": 1e-3}).atol == IntegratorOptions().atol
 
 
 @pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v1", "gfb_env/WhirlRecovery-v1"])

@@ -184,13 +184,13 @@ def test_forced_runs_are_deterministic_and_snapshots_bit_for_bit(rigid):
         return it
 
     a, b = run(), run()
-    snap = a.get_state()
+    snap = a.snapshot().as_dict()
     assert snap["rotation_angle"] == b.rotation_angle and len(snap["shocks"]) == 1
     ra = a.advance(60.0, record_interval=0.5)
     rb = b.advance(60.0, record_interval=0.5)
     assert np.array_equal(ra.trajectory.xi, rb.trajectory.xi)
     assert a.shocks == ()  # over
-    a.set_state(snap)
+    a.restore(StepperState.from_dict(snap))
     assert a.shocks and a.rotation_angle == snap["rotation_angle"]
     rc = a.advance(60.0, record_interval=0.5)
     assert np.array_equal(rc.trajectory.xi, ra.trajectory.xi)

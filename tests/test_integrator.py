@@ -1,4 +1,5 @@
 import dataclasses
+import json
 import math
 
 import numpy as np
@@ -40,7 +41,7 @@ def _fixed_step_run(m, s0, h, tau_end):
         max_newton_iterations=30,
     )  # fmt: skip
     res = it.advance(tau_end)
-    assert res.rejected_steps == 0 and res.newton_failures == 0
+    assert res.statistics.rejected_steps == 0 and res.statistics.newton_failures == 0
     assert res.steps == round(tau_end / h)
     return it.state
 
@@ -86,8 +87,8 @@ def test_quadratic_predictor_saves_newton_iterations():
     s0 = m.layout.with_rotor(find_equilibrium(m, 0.6), 0.3, 0.3)
     res = TrapezoidalIntegrator(m, s0, 0.6).advance(800.0)
     assert res.status == "done"
-    assert res.rhs_evaluations / res.steps < 3.4
-    assert res.factorizations < 0.06 * res.steps  # reuse within a factor 2 of the factored step
+    assert res.statistics.rhs_evaluations / res.steps < 3.4
+    assert res.statistics.factorizations < 0.06 * res.steps  # reuse within a factor 2 of the factored step
 
 
 def test_rigid_bearing_near_equilibrium_runs_to_2000_without_nan():
@@ -102,7 +103,7 @@ def test_rigid_bearing_near_equilibrium_runs_to_2000_without_nan():
     assert np.all(np.isfinite(tr.xi)) and np.all(np.isfinite(tr.eta))
     if res.status == "done":
         assert res.tau == pytest.approx(2000.0)
-        assert res.max_eccentricity < 1.0 and res.min_film_thickness > it.touchdown_film_thickness
+        assert res.max_eccentricity < 1.0 and res.min_film_thickness > it.options.touchdown_film_thickness
         assert tr.eccentricity[-500:].max() > 0.8  # the whirl developed (rigid Lambda_c < 0.6)
     else:
         assert res.touchdown is not None and np.isfinite(res.touchdown.tau)
@@ -137,11 +138,11 @@ def test_snapshot_restore_continues_identically(small_visco):
     s0 = m.layout.with_rotor(s0, 0.3, 0.4)
     it = TrapezoidalIntegrator(m, s0, 0.6, 1.0)
     it.advance(30.0, bearing_number=0.65)
-    snap = it.get_state()
+    snap = it.snapshot()
     a = it.advance(60.0, bearing_number=0.7, record_interval=0.5).trajectory
     sa = it.state
     it.advance(90.0)  # wander off, then restore
-    it.set_state(snap)
+    it.restore(snap)
     b = it.advance(60.0, bearing_number=0.7, record_interval=0.5).trajectory
     assert np.array_equal(sa, it.state)
     assert np.array_equal(a.xi, b.xi) and np.array_equal(a.tau, b.tau)
@@ -239,9 +240,9 @@ def test_stepper_state_round_trips_and_is_a_copy(small_visco):
     assert snap.step == it.step_size and snap.previous_step > 0 and snap.previous_step2 > 0
     assert snap.last_record_tau == 20.0
     assert snap.statistics == it.statistics and snap.statistics.steps > 0
-    # the dict form (gfb_env.envs.base reads "s", "lam", "dw") packs and unpacks every field
-    d = it.get_state()
-    assert d["lam"] == snap.bearing_number and d["dw"] == snap.foil_damping
+    # the dict form (plain JSON values) packs and unpacks every field
+    d = json.loads(json.dumps(it.snapshot().as_dict()))
+    assert d["bearing_number"] == snap.bearing_number and d["foil_damping"] == snap.foil_damping
     back = StepperState.from_dict(d)
     for name in StepperState.__dataclass_fields__:
         a, b = getattr(snap, name), getattr(back, name)
@@ -253,7 +254,7 @@ def test_stepper_state_round_trips_and_is_a_copy(small_visco):
     it.restore(snap)
     again = it.advance(30.0, record_interval=0.5)
     assert np.array_equal(tail.trajectory.xi, again.trajectory.xi)
-    it.set_state(d)
+    it.restore(StepperState.from_dict(d))
     assert np.array_equal(it.advance(30.0, record_interval=0.5).trajectory.xi, tail.trajectory.xi)
     with pytest.raises(ValueError, match="shape"):
         it.restore(dataclasses.replace(snap, s=snap.s[:-1]))
@@ -267,10 +268,10 @@ def test_statistics_are_named_and_summed_over_calls(small_visco):
     st = it.statistics
     assert isinstance(st, IntegratorStatistics)
     assert st.steps == a.steps + b.steps
-    assert st.rejected_steps == a.rejected_steps + b.rejected_steps
-    assert st.jacobians == a.jacobians + b.jacobians
-    assert st.rhs_evaluations == a.rhs_evaluations + b.rhs_evaluations
+    assert st.rejected_steps == a.statistics.rejected_steps + b.statistics.rejected_steps
+    assert st.jacobians == a.statistics.jacobians + b.statistics.jacobians
+    assert st.rhs_evaluations == a.statistics.rhs_evaluations + b.statistics.rhs_evaluations
     assert st.recorded_samples == len(a.trajectory) + len(b.trajectory) - 1  # the tau = 0 sample
-    assert it.stats[0] == st.steps and list(it.stats) == list(st.as_array())
+    assert a.statistics + b.statistics == st and list(st.as_array())[0] == st.steps
     it.reset(s0, 0.6, 1.0)
     assert it.statistics == IntegratorStatistics()

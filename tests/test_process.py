@@ -102,7 +102,7 @@ def test_native_vector_env_compiles_from_a_cold_cache_and_then_loads_it(tmp_path
         import numpy as np
         import gymnasium as gym
         import gfb_env.envs
-        import gfb_env.integrator as I
+        import gfb_env.integrator.batch as I
 
         envs = gym.make_vec("gfb_env/RunUp-v1", num_envs=4, control_interval=20.0)
         obs, _ = envs.reset(seed=0)

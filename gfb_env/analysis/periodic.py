@@ -602,14 +602,14 @@ def periodic_orbit_from_simulation(
     dw = check_positive("foil_damping", foil_damping)
     T0 = period_guess if period_guess else 4 * math.pi / lam
     integ = TrapezoidalIntegrator(model, model.layout.check(state), lam, dw, rtol=1e-5, atol=1e-5)
-    snap = integ.get_state()
+    snap = integ.snapshot()
     res = integ.advance(3.2 * T0, record_interval=T0 / 400)
     tr = res.trajectory
     tm = _xi_maxima_times(tr.tau, tr.xi_dot)
     if len(tm) < 2:
         raise ShootingError("no whirl in the seed simulation (fewer than two maxima of xi)")
     T = float(np.mean(np.diff(tm)))
-    integ.set_state(snap)
+    integ.restore(snap)
     integ.advance(float(tm[0]))
     return find_periodic_orbit(model, lam, dw, integ.state, T, **shooting_options)
 

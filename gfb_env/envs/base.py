@@ -365,7 +365,7 @@ class GFBEnv(gym.Env):
             bearing_number,
             foil_damping,
             touchdown_film_thickness=self.touchdown_film_thickness,
-            **self.config.integrator.as_kwargs(),
+            options=self.config.integrator,
         )
 
     # ------------------------------------------------------------------------------------------
@@ -750,7 +750,7 @@ class GFBEnv(gym.Env):
         if self._pending is not None:
             raise RuntimeError("get_state: a step is planned and not finished (finish_step first)")
         return {
-            "integrator": self._integ.get_state(),
+            "integrator": self._integ.snapshot(),
             "episode": copy.deepcopy(self._ep),
             "np_random": copy.deepcopy(self.np_random.bit_generator.state),
         }
@@ -761,10 +761,10 @@ class GFBEnv(gym.Env):
         integ_state = snapshot["integrator"]
         if self._integ is None or self._integ.model is not ep.model:
             self._integ = self.new_integrator(
-                ep.model, integ_state["s"], integ_state["lam"], integ_state["dw"]
+                ep.model, integ_state.s, integ_state.bearing_number, integ_state.foil_damping
             )
             self._probe_idx = ep.model.layout.midplane_probe_indices(self.n_pressure_probes)
-        self._integ.set_state(copy.deepcopy(integ_state))
+        self._integ.restore(integ_state)
         self._ep = ep
         self._pending = None
         self.np_random.bit_generator.state = copy.deepcopy(snapshot["np_random"])

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from gfb_env.envs._data import NOMINAL_BEARING
-from gfb_env.integrator_options import IntegratorOptions
+from gfb_env.integrator import IntegratorOptions
 from gfb_env.machine import (
     FoilDampingActuator,
     Motor,
@@ -117,7 +117,7 @@ class EnvConfig:
         speed_scale_rpm: observation scale of the speed (``obs = rpm / speed_scale_rpm``).
         nominal_bearing: the task's nominal bearing (observation scales; the plant unless randomised).
         integrator: settings of the trapezoidal integrator (a dict of its keyword arguments or an
-            :class:`~gfb_env.integrator_options.IntegratorOptions`).
+            :class:`~gfb_env.integrator.IntegratorOptions`).
         motor: the drive (:class:`~gfb_env.machine.Motor` or a dict of its fields); default: a
             ``Motor(max_acceleration_rpm_per_s)``.
         damping_actuator: lag, rate limit and effectiveness gain between the commanded and the actual

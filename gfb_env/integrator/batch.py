@@ -1,0 +1,322 @@
+"""Many :class:`~gfb_env.integrator.TrapezoidalIntegrator` calls in one compiled call:
+:class:`BatchAdvance`, its stacked workspace and the two batch kernels (parallel ``prange`` and serial
+``range``: numba's parallel launch costs ~50 us per call, so one thread or one env takes the serial
+one).  Both take the argument groups of :mod:`gfb_env.integrator.arguments`."""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+from gfb_env import _kernels as K
+from gfb_env.integrator.arguments import (
+    CALL_DTYPE,
+    CLOCK_FIELDS,
+    BatchArrays,
+    Factorization,
+    Forcing,
+    Jacobian,
+    Recording,
+    call_row,
+    store_clock,
+    unpack_row,
+)
+from gfb_env.integrator.results import _EXTREMES_START, AdvanceResult, IntegrationError, IntegrationStatus
+from gfb_env.integrator.stages import _advance
+from gfb_env.integrator.stepper import (
+    DEFAULT_MAX_STEPS,
+    PreparedCall,
+    TrapezoidalIntegrator,
+    _call_compiled,
+    _shape_key,
+)
+from gfb_env.model import GFBModel
+
+__all__ = ["BatchAdvance"]
+
+
+# ------------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _advance_env(i, b, n_rows, sparse, size_tag):
+    """:func:`~gfb_env.integrator.stages._advance` of env i of a batch: it gets exactly the argument
+    groups (types included) that :meth:`TrapezoidalIntegrator.advance` passes, built from row i of the
+    stacked arrays ``b`` (:class:`~gfb_env.integrator.arguments.BatchArrays`, its scalars by name from
+    ``b.calls[i]``: :func:`~gfb_env.integrator.arguments.unpack_row`), so it runs the same compiled
+    loop and its result is bit for bit the single call's.  The clock at the end and the status code go
+    back into ``b.calls[i]``.  Each env's Jacobian and factorisation workspace carries nothing from
+    call to call (every call evaluates J first).  A failure is a status of its env only."""
+    c = b.calls[i]
+    clock, schedule, opt, rec_t, rows = unpack_row(c)
+    Y = b.y
+    y = (Y[i, 0], Y[i, 1], Y[i, 2], Y[i, 3], Y[i, 4])
+    kargs = (b.ip[i], b.fp[i], b.sn[i], b.cs[i])
+    jac = Jacobian(b.Ad[i], b.Ap[i], b.Am[i], b.Er[i], b.Rr[i], b.Srr[i])
+    lu = Factorization(b.Dlu[i], b.Dpiv[i], b.Uhat[i], b.Yw[i], b.Slu[i], b.Spiv[i], n_rows, sparse, size_tag)
+    rec = Recording(b.record_indices, rec_t[0], rec_t[1], b.record_buffers[i, rows[0] : rows[1]])
+    if c.forced:
+        forcing = Forcing(c.unbalance, c.forcing_angle, b.shocks[i, : c.n_shocks], c.forcing_max_step)
+        code, clock = _advance(y, clock, schedule, kargs, jac, lu, opt, rec, b.stats[i], b.ext[i], forcing)
+    else:
+        code, clock = _advance(y, clock, schedule, kargs, jac, lu, opt, rec, b.stats[i], b.ext[i], None)
+    c.status = code
+    store_clock(c, clock)
+
+
+@njit(parallel=True, cache=True)
+def _advance_batch(b, lu_static):
+    """:func:`_advance_env` of env i = 0..N-1 in a ``prange``.  A parallel loop takes arrays, not
+    tuples: ``b`` is unpacked by name before it and repacked by keyword inside (one BatchArrays per
+    env; numba refuses a name that BatchArrays lacks or misses), ``lu_static`` likewise."""
+    n_rows, sparse, size_tag = lu_static
+    calls, y, ip, fp, sn, cs = b.calls, b.y, b.ip, b.fp, b.sn, b.cs
+    Ad, Ap, Am, Er, Rr, Srr = b.Ad, b.Ap, b.Am, b.Er, b.Rr, b.Srr
+    Dlu, Dpiv, Uhat, Yw, Slu, Spiv = b.Dlu, b.Dpiv, b.Uhat, b.Yw, b.Slu, b.Spiv
+    record_indices, record_buffers, stats, ext, shocks = (
+        b.record_indices,
+        b.record_buffers,
+        b.stats,
+        b.ext,
+        b.shocks,
+    )
+    for i in prange(calls.shape[0]):
+        env = BatchArrays(
+            calls=calls, y=y, ip=ip, fp=fp, sn=sn, cs=cs, Ad=Ad, Ap=Ap, Am=Am, Er=Er, Rr=Rr, Srr=Srr,
+            Dlu=Dlu, Dpiv=Dpiv, Uhat=Uhat, Yw=Yw, Slu=Slu, Spiv=Spiv, record_indices=record_indices,
+            record_buffers=record_buffers, stats=stats, ext=ext, shocks=shocks,
+        )  # fmt: skip
+        _advance_env(i, env, n_rows, sparse, size_tag)
+
+
+@njit(cache=True)
+def _advance_batch_serial(b, lu_static):
+    """:func:`_advance_env` of env i = 0..N-1 one after the other, in the calling thread: for one
+    thread or one env (numba's parallel launch costs ~50 us of CPU per call even then, measured)."""
+    n_rows, sparse, size_tag = lu_static
+    for i in range(b.calls.shape[0]):
+        _advance_env(i, b, n_rows, sparse, size_tag)
+
+
+def _choose_threading_layer() -> None:
+    """numba's ``workqueue`` threading layer for the batch unless the user chose one
+    (``NUMBA_THREADING_LAYER``) or numba already started one.  Measured on the shared 2-core machine
+    (load ~4): with 2 threads GNU OpenMP's ``omp`` layer made a batch call 5x slower than 1 thread
+    (its workers spin while the cores are busy), ``workqueue`` was as fast as 1 thread; ``workqueue``
+    is also fork-safe (GNU OpenMP is not: a forked worker that launched threads would hang).  It is
+    not thread-safe: do not step two batches from two Python threads at once."""
+    if os.environ.get("NUMBA_THREADING_LAYER") is None and numba.config.THREADING_LAYER == "default":
+        from numba.np.ufunc import parallel
+
+        if not getattr(parallel, "_is_initialized", True):  # (numba internals: when unknown, leave it)
+            numba.config.THREADING_LAYER = "workqueue"
+
+
+class _BatchWorkspace:
+    """The stacked arrays of :func:`_advance_batch` for up to ``capacity`` envs of one model shape
+    (:class:`~gfb_env.integrator.arguments.BatchArrays`, sliced to the batch by :meth:`arrays`)."""
+
+    def __init__(self, capacity: int, model: GFBModel, n_recorded: int):
+        N, n = capacity, model.layout.size
+        nc, m = model.grid.n_columns, model.layout.block_size
+        nb = m + 4
+        z = np.zeros
+        self.shape_key = _shape_key(model)
+        self.capacity, self.n_recorded = capacity, n_recorded
+        self.kargs_of_slot: list[tuple | None] = [None] * N  # whose kernel args each row holds
+        self.lu_static = (model.grid.n_rows, model.sparse_offdiagonal_blocks, K.size_tag(m))
+        self.stacked = BatchArrays(
+            calls=z(N, CALL_DTYPE),
+            y=z((N, 5, n)),
+            ip=z((N, 3), np.int64), fp=z((N, 4)), sn=z((N, nc)), cs=z((N, nc)),
+            Ad=z((N, nc, m, m)), Ap=z((N, nc, m, m)), Am=z((N, nc, m, m)), Er=z((N, nc, m, 4)),
+            Rr=z((N, nc, 4, m)), Srr=z((N, 4, 4)),
+            Dlu=z((N, nc, m, m)), Dpiv=z((N, nc, m), np.int64), Uhat=z((N, nc, m, m)),
+            Yw=z((N, nc, m, nb)), Slu=z((N, nb, nb)), Spiv=z((N, nb), np.int64),
+            record_indices=np.zeros(0, np.int64),
+            record_buffers=np.empty((N, 0, n_recorded + 2)),
+            stats=z((N, 9), np.int64), ext=z((N, 9)),
+            shocks=z((N, 0, 4)),
+        )  # fmt: skip
+
+    def fits(self, n_envs: int, model: GFBModel, n_recorded: int) -> bool:
+        return (
+            n_envs <= self.capacity and _shape_key(model) == self.shape_key and n_recorded == self.n_recorded
+        )
+
+    def reserve(self, rows: int, shocks: int) -> None:
+        """At least ``rows`` sample rows and ``shocks`` shock rows per env."""
+        N, b = self.capacity, self.stacked
+        if b.record_buffers.shape[1] < rows:
+            self.stacked = b = b._replace(record_buffers=np.empty((N, rows, b.record_buffers.shape[2])))
+        if b.shocks.shape[1] < shocks:
+            self.stacked = b._replace(shocks=np.zeros((N, shocks, 4)))
+
+    def arrays(self, n: int, record_indices: np.ndarray) -> BatchArrays:
+        """The first ``n`` envs' rows of every stacked array, and the batch's recorded entries."""
+        return BatchArrays(*(a[:n] for a in self.stacked))._replace(record_indices=record_indices)
+
+
+class BatchAdvance:
+    """Advance many :class:`TrapezoidalIntegrator` objects with one compiled, parallel call.
+
+    :meth:`advance` runs, for each integrator, exactly what its :meth:`TrapezoidalIntegrator.advance`
+    runs: the same Python preparation and finish, and the same compiled loop (:func:`_advance`, called
+    by :func:`_advance_batch` in a numba ``prange`` over the integrators), so every result and state is
+    bit for bit the one-by-one result, for any thread count.  Integrators may have different models of
+    one grid (e.g. randomised bearings), be forced (unbalance, shocks) or not; a failure (status
+    ``"failed"``/``"max_steps"``) is that integrator's only.  Integrators of different grids, or calls
+    with different recorded entries, are advanced one after the other (same results).
+
+    Args:
+        num_threads: numba threads of the call (``numba.set_num_threads``; at most
+            ``numba.config.NUMBA_NUM_THREADS``, the cores numba sees, which is the default).  The
+            environment variable ``NUMBA_NUM_THREADS`` caps it for the process.
+    """
+
+    def __init__(self, num_threads: int | None = None):
+        self.num_threads = num_threads
+        self._ws: _BatchWorkspace | None = None
+
+    @property
+    def num_threads(self) -> int:
+        return self._num_threads
+
+    @num_threads.setter
+    def num_threads(self, value: int | None) -> None:
+        limit = numba.config.NUMBA_NUM_THREADS
+        if value is None:
+            value = limit
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 1 <= value <= limit:
+            raise ValueError(
+                f"num_threads must be an integer in [1, {limit}] (NUMBA_NUM_THREADS), got {value!r}"
+            )
+        self._num_threads = int(value)
+
+    def advance(
+        self,
+        integrators: list[TrapezoidalIntegrator],
+        tau_end: list[float],
+        bearing_number: list[float | None],
+        foil_damping: list[float | None],
+        record_interval: float | None = None,
+        record_indices: np.ndarray | None = None,
+        max_steps: int = DEFAULT_MAX_STEPS,
+        raise_on_failure: bool = True,
+    ) -> list[AdvanceResult]:
+        """:meth:`TrapezoidalIntegrator.advance` of every integrator (``tau_end``, ``bearing_number``,
+        ``foil_damping``: one per integrator; the recording and ``max_steps`` are shared).  Bad
+        arguments raise as one call after the other would (the integrators before the bad one are
+        advanced).  With ``raise_on_failure`` an :class:`IntegrationError` is raised after all are
+        advanced, for the first one that failed."""
+        integs = list(integrators)
+        n = len(integs)
+        if len({id(x) for x in integs}) != n:
+            raise ValueError("integrators: each integrator may appear only once")
+        for name, v in (
+            ("tau_end", tau_end),
+            ("bearing_number", bearing_number),
+            ("foil_damping", foil_damping),
+        ):
+            if len(v) != n:
+                raise ValueError(f"{name}: {len(v)} values for {n} integrators")
+        calls: list[PreparedCall] = []
+        try:
+            for k, integ in enumerate(integs):
+                calls.append(
+                    integ.prepare(
+                        tau_end[k],
+                        bearing_number[k],
+                        foil_damping[k],
+                        record_interval,
+                        record_indices,
+                        max_steps,
+                    )
+                )
+        except Exception:
+            self.run_prepared(integs[: len(calls)], calls)  # those before the bad one, as one by one
+            raise
+        results = self.run_prepared(integs, calls)
+        if raise_on_failure:
+            for r in results:
+                if r.status in (IntegrationStatus.FAILED, IntegrationStatus.MAX_STEPS):
+                    raise IntegrationError(r.message)
+        return results
+
+    def run_prepared(
+        self, integs: list[TrapezoidalIntegrator], calls: list[PreparedCall]
+    ) -> list[AdvanceResult]:
+        """The compiled part and the finish of calls prepared by ``integs[k].prepare(...)`` (each
+        integrator once; used by the vector env, which prepares each env's call itself)."""
+        n = len(calls)
+        _choose_threading_layer()
+        if n == 0:
+            return []
+        model0 = integs[0].model
+        key = integs[0]._shape_key
+        rec_key = integs[0]._record_key
+        rec_idx = calls[0].recording.indices
+        if any(it._shape_key != key or it._record_key != rec_key for it in integs):
+            return [self._one(it, c) for it, c in zip(integs, calls, strict=True)]
+        ws = self._ws
+        if ws is None or not ws.fits(n, model0, len(rec_idx)):
+            ws = self._ws = _BatchWorkspace(
+                max(n, ws.capacity if ws is not None else 0), model0, len(rec_idx)
+            )
+        ws.reserve(max(c.rec_buf.shape[0] for c in calls), max(len(c.st.shocks) for c in calls))
+        b = ws.arrays(n, rec_idx)
+        Y = b.y
+        # every scalar of every call into its row of b.calls (the one packer: arguments.call_row)
+        b.calls[:] = [
+            call_row(c.st.clock, c.schedule, c.options, c.recording, (c.first, c.rec_buf.shape[0]), c.forcing)
+            for c in calls
+        ]
+        b.stats[:] = 0
+        b.ext[:] = _EXTREMES_START
+        for k, (it, c) in enumerate(zip(integs, calls, strict=True)):
+            st, Yk = c.st, Y[k]
+            Yk[0], Yk[1], Yk[2], Yk[3], Yk[4] = st.s, st.f, st.fprev, st.sprev, st.sprev2
+            if ws.kargs_of_slot[k] is not it._kernel_args:
+                b.ip[k], b.fp[k], b.sn[k], b.cs[k] = it._kernel_args
+                ws.kargs_of_slot[k] = it._kernel_args
+            if c.first:
+                b.record_buffers[k, 0] = c.rec_buf[0]
+            if c.forcing is not None:
+                b.shocks[k, : len(c.forcing.shocks)] = c.forcing.shocks
+        threads = min(self._num_threads, n)
+        key = (ws.lu_static, len(rec_idx))
+        if threads == 1:
+            self._launch(_advance_batch_serial, key, b, ws.lu_static)
+        else:
+            old_threads = numba.get_num_threads()
+            numba.set_num_threads(threads)
+            # many envs of unequal cost: one at a time to each thread (dynamic scheduling costs ~30 us
+            # more per launch, measured; with a few envs per thread the static split is cheaper)
+            old_chunk = numba.set_parallel_chunksize(1 if n > 4 * threads else 0)
+            try:
+                self._launch(_advance_batch, key, b, ws.lu_static)
+            finally:
+                numba.set_parallel_chunksize(old_chunk)
+                numba.set_num_threads(old_threads)
+        clocks = b.calls[list(CLOCK_FIELDS)].tolist()
+        codes = b.calls["status"].tolist()
+        counts, exts = b.stats.tolist(), b.ext.tolist()
+        out = []
+        for k, (it, c) in enumerate(zip(integs, calls, strict=True)):
+            st, Yk = c.st, Y[k]
+            st.s[:], st.f[:], st.fprev[:], st.sprev[:], st.sprev2[:] = Yk
+            rec_buf = b.record_buffers[k, : c.rec_buf.shape[0]]
+            out.append(it._finish(c, codes[k], clocks[k], counts[k], exts[k], rec_buf, False))
+        return out
+
+    @staticmethod
+    def _launch(kernel: Any, key: tuple, *args: Any) -> None:
+        """The compiled batch call (a method: ``bench_env`` times it)."""
+        _call_compiled(kernel, key, *args)
+
+    @staticmethod
+    def _one(it: TrapezoidalIntegrator, c: PreparedCall) -> AdvanceResult:
+        code, clock = it._run(c)
+        return it._finish(c, code, clock, c.stats.tolist(), c.ext.tolist(), c.rec_buf, False)

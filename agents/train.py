@@ -1083,19 +1083,6 @@ def _check_env_kwargs(c: TrainConfig) -> None:
         env.close()
 
 
-def _check_writable(folder: Path, option: str = "--out") -> None:
-    """Create ``folder`` and a scratch file in it (ValueError, one line, if either fails): what
-    ``check_output_dir``'s permission test cannot see (``/proc``, a full or read-only mount)."""
-    import tempfile
-
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=folder):
-            pass
-    except OSError as exc:
-        raise ValueError(f"{option} {folder}: cannot write there ({exc.strerror or exc})") from None
-
-
 def _check_runs(config: TrainConfig, run_seeds: list[int], scheduler: str | None = None) -> None:
     """Refuse (ValueError, one line) what would make a run of the sweep fail after it started: the
     hyperparameters, the env kwargs, a run folder holding a run with other settings, an unwritable output
@@ -1107,7 +1094,7 @@ def _check_runs(config: TrainConfig, run_seeds: list[int], scheduler: str | None
     _check_env_kwargs(config)
     if scheduler is not None:
         _check_scheduler(scheduler)
-    _check_writable(Path(root))
+    check_output_dir(str(root), "--out")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -113,7 +113,7 @@ def test_train_refuses_a_folder_holding_a_run_with_other_settings(tmp_path, caps
         ("yaml", "is not valid YAML at line 3"),  # defect 7: a yaml.ParserError traceback
         ("unknown-hyperparameter", "are not keyword arguments of PPO"),  # TypeError inside the run
         ("env-kwargs", "unknown environment argument 'bogus'"),  # defect 9: exit 1 inside the run
-        ("out", f"--out {PROC_OUT}: cannot write there"),  # defect 9: exit 1 inside the run
+        ("out", f"--out {PROC_OUT}: cannot write"),  # defect 9: exit 1 inside the run
         ("scheduler", "no Dask scheduler answers there"),  # defect 7: traceback after 30 s
     ],
 )
@@ -152,7 +152,7 @@ def _bench(tmp_path: Path, *extra: str) -> list[str]:
         # defect 7
         (["--tasks", "CartPole-v1"], "--tasks: unknown task 'CartPole-v1'; known: gfb_env/"),
         (["--env-kwargs", json.dumps({ENV: {"bogus": 1}})], "unknown environment argument 'bogus'"),
-        (["--out", PROC_OUT], f"--out {PROC_OUT}: cannot write there"),
+        (["--out", PROC_OUT], f"--out {PROC_OUT}: cannot write"),
         # defect 8
         (["--agents", "bogus"], "--agents: unknown agent 'bogus'; agents of the tasks: map_informed_v1"),
         (["--agents", "map_informed"], "'map_informed' plays none of the tasks gfb_env/RunUp-v1"),

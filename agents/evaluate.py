@@ -26,6 +26,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from gfb_agents import POLICIES_DIR
 from gfb_agents.scripted import Policy
 
 __all__ = [
@@ -39,8 +40,6 @@ __all__ = [
     "LEARNED_ALGOS",
     "algo_class",
 ]
-
-POLICIES_DIR = Path(__file__).resolve().parent / "policies"
 
 
 #: algorithms a learned policy may come from (``gfb_agents.train --algo``)

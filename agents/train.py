@@ -53,6 +53,7 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
+from gfb_agents import HYPERPARAMS_DIR
 from gfb_agents import seeds as seeds_mod
 from gfb_agents.evaluate import algo_class
 from gfb_agents.seeds import VALIDATION
@@ -74,7 +75,6 @@ __all__ = [
     "plot_learning_curve",
 ]
 
-HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
 ALGOS = ("ppo", "sac", "recurrentppo")
 #: keys of the zoo files that are not algorithm keyword arguments
 ZOO_KEYS = ("n_timesteps", "policy", "n_envs", "normalize", "env_wrapper", "frame_stack", "callback")

@@ -131,7 +131,7 @@ class AgentEntry:
         if not 0 <= run < self.runs:
             raise ValueError(f"agent {self.name!r} has {self.runs} run(s), asked for run {run}")
         if self.kind == "learned":
-            from gfb_agents.evaluate import LearnedPolicy
+            from gfb_agents.learned.evaluate import LearnedPolicy
 
             pol: Policy = LearnedPolicy(self.run_paths[run], name=self.name)
         else:
@@ -345,7 +345,7 @@ def default_ladder() -> dict[str, AgentEntry]:
         )
     )
     try:
-        from gfb_agents.evaluate import POLICIES_DIR
+        from gfb_agents.learned.evaluate import POLICIES_DIR
 
         out += learned_entries(POLICIES_DIR)
     except FileNotFoundError:  # a broken install: the benchmark refuses to run without them

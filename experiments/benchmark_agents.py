@@ -48,8 +48,8 @@ import gymnasium as gym
 import numpy as np
 
 from gfb_agents import ladder as ladder_mod
-from gfb_agents.evaluate import POLICIES_DIR, EpisodeResult, run_episode, summarise
 from gfb_agents.ladder import AgentEntry, ladder_for, learned_entries, naive_for, oracle_for
+from gfb_agents.learned.evaluate import POLICIES_DIR, EpisodeResult, run_episode, summarise
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.seeds import MIN_TEST_EPISODES, SPLITS, split_seeds
 from gfb_env import jsonio

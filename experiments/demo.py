@@ -101,7 +101,7 @@ def critical_stage(out: Path) -> list[dict]:
 def runup_stage(out: Path, seed: int = 0) -> dict:
     import gymnasium as gym
 
-    from gfb_agents.evaluate import run_episode
+    from gfb_agents.learned.evaluate import run_episode
     from gfb_agents.rules_v1 import make_rule
 
     env = gym.make("gfb_env/RunUp-v1", render_mode="rgb_array")

@@ -16,7 +16,7 @@ import csv
 import json
 from pathlib import Path
 
-from gfb_agents.evaluate import POLICIES_DIR
+from gfb_agents.learned.evaluate import POLICIES_DIR
 from gfb_env._cli_common import OneLineParser
 
 __all__ = ["training_rows", "markdown"]

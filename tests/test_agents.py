@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from gfb_agents import seeds
-from gfb_agents.evaluate import LearnedPolicy, run_episode, summarise
+from gfb_agents.learned.evaluate import LearnedPolicy, run_episode, summarise
+from gfb_agents.learned.train import TrainConfig, load_hyperparams, train
+from gfb_agents.learned.train import main as train_main
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.scripted import ControlSpec, MapInformedAgent, make_scripted_agents
-from gfb_agents.train import TrainConfig, load_hyperparams, train
-from gfb_agents.train import main as train_main
 from gfb_env.envs import ENV_IDS
 
 TASKS = ENV_IDS  # the task list has one owner
@@ -165,7 +165,7 @@ def test_a_run_stopped_after_a_checkpoint_resumes_to_the_same_total(tmp_path, mo
     config again resumes from that checkpoint (new env seeds, same VecNormalize) and ends at 256 steps."""
     from stable_baselines3 import PPO
 
-    from gfb_agents import train as train_mod
+    from gfb_agents.learned import train as train_mod
 
     real_checkpoint = train_mod._Session.checkpoint
 
@@ -206,7 +206,7 @@ def test_interrupted_training_is_saved_and_resumable(tmp_path, monkeypatch):
     are saved; the same command again continues to the total."""
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from gfb_agents import train as train_mod
+    from gfb_agents.learned import train as train_mod
 
     calls = {"n": 0}
 
@@ -289,7 +289,7 @@ def test_train_cli_trains_several_seeds_and_the_ladder_registers_them(tmp_path):
         pol = e.build(gym.make(env_id), run=1)
         assert pol.name == "ppo_tiny" and pol.model_path == tmp_path / "exp" / "seed1" / "best" / "model.zip"
     # export both runs (validation-selected models) as one committed multi-seed agent
-    from gfb_agents.export_policy import export_policy
+    from gfb_agents.learned.export_policy import export_policy
 
     dest = export_policy(tmp_path / "exp", "ppo_tiny", root=tmp_path / "policies")
     assert sorted(p.name for p in dest.iterdir()) == ["seed0", "seed1"]
@@ -433,7 +433,7 @@ def test_benchmark_cli_rejects_bad_arguments(capsys, tmp_path, argv, fragment):
 
 
 def test_committed_policies_load_and_act():
-    from gfb_agents.evaluate import load_learned_policies
+    from gfb_agents.learned.evaluate import load_learned_policies
 
     pols = load_learned_policies()
     assert {p.env_id for p in pols} >= {"gfb_env/RunUpRandomized-v0", "gfb_env/WhirlRecovery-v0"}

@@ -283,7 +283,7 @@ def test_table_rows_from_constructed_episodes():
     """reduce_results on hand-made episodes: per-seed normalisation, one row per agent, learned agents
     stratified by training seed."""
     from gfb_agents import ladder
-    from gfb_agents.evaluate import EpisodeResult
+    from gfb_agents.learned.evaluate import EpisodeResult
     from gfb_experiments.benchmark_agents import Chunk, reduce_results
 
     task = "gfb_env/RunUp-v0"

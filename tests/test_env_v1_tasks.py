@@ -370,8 +370,8 @@ def test_random_actions_for_whole_episodes_never_give_nan(env_id):
 def test_the_oracle_succeeds_where_the_naive_ramp_does_not():
     """Without shocks the oracle's plan (command D_opt / g, ramp to min(cmd, 0.99 lambda_best), hold)
     certifies; the naive constant-damping ramp stops short of the command (or whirls)."""
-    from gfb_agents.evaluate import run_episode
     from gfb_agents.ladder import make_naive
+    from gfb_agents.learned.evaluate import run_episode
     from gfb_agents.oracle import CommandedOracle
 
     env = gym.make("gfb_env/RunUp-v1", **NO_SHOCKS)

@@ -10,8 +10,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gfb_agents.evaluate import run_episode
 from gfb_agents.identify import BearingIdentifier, IdentifyingAgent, OracleAgent
+from gfb_agents.learned.evaluate import run_episode
 from gfb_agents.scripted import make_scripted_agents
 
 RANDOMIZED = "gfb_env/RunUpRandomized-v0"

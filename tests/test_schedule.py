@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gfb_agents.evaluate import run_episode
+from gfb_agents.learned.evaluate import run_episode
 from gfb_agents.scripted import ControlSpec, ScheduleAgent
 from gfb_env.analysis.response import unbalance_response
 from gfb_env.analysis.schedule import design_run_up_schedule, verify_schedule

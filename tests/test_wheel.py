@@ -62,9 +62,9 @@ CHECKS = textwrap.dedent(
     from gfb_env.envs import ENV_IDS
     from gfb_env.envs._data import TaskConstantsWarning
     from gfb_env.analysis import optimal_foil_damping
-    from gfb_agents.evaluate import load_learned_policies
+    from gfb_agents.learned.evaluate import load_learned_policies
     from gfb_agents.nominal_map import NominalMap
-    from gfb_agents.train import load_hyperparams
+    from gfb_agents.learned.train import load_hyperparams
 
     warnings.simplefilter("error", TaskConstantsWarning)  # a recompute would mean missing data
     out = {"files": {m.__name__: m.__file__ for m in (gfb_env, gfb_agents, gfb_experiments)},

@@ -18,7 +18,7 @@ import json
 import shutil
 from pathlib import Path
 
-from gfb_agents.evaluate import POLICIES_DIR
+from gfb_agents.learned.evaluate import POLICIES_DIR
 from gfb_env import jsonio
 from gfb_env._cli_common import OneLineParser
 

@@ -55,7 +55,7 @@ import yaml
 
 from gfb_agents import HYPERPARAMS_DIR
 from gfb_agents import seeds as seeds_mod
-from gfb_agents.evaluate import algo_class
+from gfb_agents.learned.evaluate import algo_class
 from gfb_agents.seeds import VALIDATION
 from gfb_env import jsonio
 from gfb_env._cli_common import OneLineParser, check_output_dir
@@ -176,7 +176,7 @@ def make_vec_env_for(
         raise ValueError(f"vec_env must be one of {VEC_ENVS}, got {vec_env!r}")
     env_kwargs = dict(env_kwargs or {})
     if vec_env == "native":
-        from gfb_agents.vec_env import GFBSB3VecEnv
+        from gfb_agents.learned.vec_env import GFBSB3VecEnv
 
         native = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point", **env_kwargs)
         # one thread for the compiled plant stage: training runs go in parallel over the seeds (one per
@@ -284,7 +284,7 @@ class _Session:
     def validate(self, model) -> dict:
         """Play the validation seeds with the current policy (deterministic, frozen normalisation) through
         the benchmark's own episode loop; keep the best model in ``best/``."""
-        from gfb_agents.evaluate import LearnedPolicy, evaluate
+        from gfb_agents.learned.evaluate import LearnedPolicy, evaluate
 
         t = time.perf_counter()
         pol = LearnedPolicy.from_model(

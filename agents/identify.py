@@ -1,31 +1,26 @@
-"""A rule that identifies the drawn bearing from the first observation, and the oracle that knows it.
+"""Identification of the drawn bearing from observations, and the rule that flies the table at the estimate.
 
-RunUpRandomized-v0 hides the drawn bearing (clearance ``C``, foil stiffness factor ``f_K``, load
-``F_L``), but the episode starts at the *static equilibrium* of that bearing at the documented start
-speed, and the first observation shows the journal position (in units of the nominal clearance) and the
-midplane pressure probes of that equilibrium.  Those ten numbers depend on the three parameters smoothly
-and, on every draw tried, identifiably, so an engineer with this package's model identifies the bearing
-by least squares before the first control step: :class:`BearingIdentifier` (a coarse 3 x 3 x 3 grid, then
+RunUpRandomized-v1 hides the drawn bearing (clearance ``C``, foil stiffness factor ``f_K``, load ``F_L``);
+the episode starts at the static equilibrium of that bearing at the documented start speed, and the
+observation shows the journal position (in units of the nominal clearance) and the midplane pressure
+probes of that equilibrium (with the sensors' noise and biases, ``docs/machine.md``).  Those numbers
+depend on the three parameters smoothly, so an engineer with this package's model identifies the bearing
+by least squares: :class:`BearingIdentifier` (a coarse 3 x 3 x 3 grid, then
 ``scipy.optimize.least_squares`` within the env's documented ranges, restarted from the next grid points
-while the residual stays visible; ~60 equilibrium solves of ~5 ms on average, at most a few hundred:
-~0.3 s, zero control steps; all draws of seeds 0..149 and 10000..10049 recovered to 0.1 %).
-:class:`IdentifyingAgent` (``identify_map``) then reads the env's published table
-(``env.table``, :class:`~gfb_env.envs.run_up_randomized.BestStableSpeedTable`: ``lambda_best`` and
-``d_opt`` of a bearing) at the estimate and flies the map-informed schedule (damping ``d_opt``, ramp at
+while the residual stays visible; ~60 equilibrium solves of ~5 ms on average).
+:class:`IdentifyingAgent` then reads the env's published table (``env.table``,
+:class:`~gfb_env.envs.run_up_randomized.BestStableSpeedTable`: ``lambda_best`` and ``d_opt`` of a bearing)
+at the estimate from the first observation and flies the map-informed schedule (damping ``d_opt``, ramp at
 the motor limit, hold at ``target_fraction * lambda_best``, capped as the env caps it) on the estimated
-bearing.
+bearing; capped at the task's command it is the v1 rule ``identify_map_v1``
+(:func:`gfb_agents.rules_v1.make_rule`).
 
 What :class:`IdentifyingAgent` may read, as any user of the env: the observation and the env's documented
 configuration (nominal bearing, grid, number of probes, start speed, parameter ranges, the published
 table, action map, control interval, speed range) -- never the drawn parameters, the episode or the
 simulator state (``env.unwrapped.episode``, ``_integ``).  It copies what it needs when it is built and
-keeps no reference to the env.  On tasks without a drawn bearing (RunUp-v0, WhirlRecovery-v0) it is the
-map-informed rule (:class:`~gfb_agents.scripted.MapInformedAgent`).
-
-:class:`OracleAgent` (``oracle``) is *not* an honest rule: it reads the drawn parameters from the reset
-``info`` (``clearance_um``, ``stiffness_factor``, ``load_n``) and flies the same schedule on the true
-bearing; it defines the top of the benchmark's scale for this schedule (it is an upper bound only for
-schedules of this family, not for every policy).
+keeps no reference to the env.  On tasks without a drawn bearing it is the map-informed rule
+(:class:`~gfb_agents.scripted.MapInformedAgent`).
 """
 
 from __future__ import annotations
@@ -41,12 +36,12 @@ from gfb_env.envs.base import viscoelastic_model
 from gfb_env.envs.units import N_ROTOR_OBS, OBS_ETA, OBS_XI
 from gfb_env.equilibrium import EquilibriumError, find_equilibrium
 
-__all__ = ["BearingEstimate", "BearingIdentifier", "IdentifyingAgent", "OracleAgent"]
+__all__ = ["BearingEstimate", "BearingIdentifier", "IdentifyingAgent"]
 
 
 @dataclass(frozen=True)
 class BearingEstimate:
-    """An identified (or, for the oracle, known) bearing: ``C`` (m), ``f_K``, ``F_L`` (N), and the rms
+    """An identified bearing: ``C`` (m), ``f_K``, ``F_L`` (N), and the rms
     residual of the fit (observation units; 0 for a known bearing)."""
 
     clearance_m: float
@@ -57,7 +52,7 @@ class BearingEstimate:
 
 
 class BearingIdentifier:
-    """Least-squares fit of ``(C, f_K, F_L)`` of RunUpRandomized-v0 to its first observation.
+    """Least-squares fit of ``(C, f_K, F_L)`` of a randomised task to its first observation.
 
     Built from the env's documented configuration only (see the module docstring).  The prediction of
     the first observation for a candidate bearing is exactly what the env does at reset: the static
@@ -161,7 +156,7 @@ class BearingIdentifier:
 
 
 class IdentifyingAgent(ScriptedPolicy):
-    """``identify_map``: identify the drawn bearing from the first observation, then fly the
+    """Identify the drawn bearing from the first observation, then fly the
     map-informed schedule for it (the env's published table at the estimate).
 
     Reads only the observation and the env's documented configuration and table (module docstring);
@@ -217,38 +212,3 @@ class IdentifyingAgent(ScriptedPolicy):
                 m["setpoint"], m["damping"], m["rate"] = self.schedule_for(est)
             m["estimate"] = self.last_estimate = est
         return [self.track(m, rpm, m["setpoint"]), self.spec.damping_action(m["damping"])]
-
-
-class OracleAgent(IdentifyingAgent):
-    """``oracle``: the identify_map schedule on the *true* drawn bearing.
-
-    NOT an honest rule: it knows the hidden parameters, read from the ``info`` of ``env.reset``
-    (``clearance_um``, ``stiffness_factor``, ``load_n``), which the evaluation hands it through
-    :meth:`observe_reset_info` before the first action.  Without that info (a task without a drawn
-    bearing) it is the map-informed rule.  One env at a time (the info is not batched).
-    """
-
-    kind = "oracle"
-
-    def __init__(
-        self, env, spec: ControlSpec | None = None, nmap: NominalMap | None = None, name: str = "oracle"
-    ):
-        super().__init__(env, spec, nmap, name)
-        self.identifier = None
-        self._known: BearingEstimate | None = None
-
-    def reset(self) -> None:
-        super().reset()
-        self._known = None
-
-    def observe_reset_info(self, info: dict) -> None:
-        """Take the drawn bearing from the reset ``info`` (what makes this agent an oracle)."""
-        if self.randomized and "clearance_um" in info:
-            self._known = BearingEstimate(
-                float(info["clearance_um"]) * 1e-6, float(info["stiffness_factor"]), float(info["load_n"])
-            )
-        else:
-            self._known = None
-
-    def _estimate(self, obs, m):
-        return self._known

@@ -10,8 +10,8 @@ exactly one ``naive`` and one ``oracle`` entry.
 Registering an agent (the interface for the v1 oracle, the rules and the learned agents)::
 
     from gfb_agents.ladder import AgentEntry, register, V1_TASKS
-    # make_oracle(env) -> Policy; the built-in "oracle" keeps the v0 tasks
-    register(AgentEntry("oracle_v1", "oracle", V1_TASKS, make_oracle), supersede=True)
+    # make_oracle(env) -> Policy; supersede=True takes the tasks from the built-in oracle_v1
+    register(AgentEntry("my_oracle", "oracle", V1_TASKS, make_oracle), supersede=True)
     register(AgentEntry("identify_shock", "rule", ("gfb_env/RunUpRandomized-v1",), make_rule))
     register_learned("runs/RunUpRandomized-v1_sac", name="sac")   # a gfb_agents.train output (seed*/)
 
@@ -28,9 +28,8 @@ A learned entry has one run per independent training seed (``run_paths``); the b
 on the same test seeds and the statistics stratify by run.
 
 The built-in ladder (:func:`default_ladder`): on every task the naive ramp (:class:`NaiveRampAgent`), the
-scripted rules of :mod:`gfb_agents.scripted` and ``identify_map`` of :mod:`gfb_agents.identify` as rules,
-:class:`~gfb_agents.identify.OracleAgent` as the oracle of the v0 tasks and
-:class:`~gfb_agents.oracle.CommandedOracle` (``oracle_v1``) of the v1 tasks, and the committed learned
+v1 rules of :mod:`gfb_agents.rules_v1` on the tasks each was written for,
+:class:`~gfb_agents.oracle.CommandedOracle` (``oracle_v1``) as the oracle, and the committed learned
 policies of their task.
 """
 
@@ -47,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from gfb_agents.nominal_map import NominalMap
-from gfb_agents.scripted import ControlSpec, Policy, ScriptedPolicy, make_scripted_agents
+from gfb_agents.scripted import ControlSpec, Policy, ScriptedPolicy
 
 __all__ = [
     "KINDS",
@@ -65,7 +64,6 @@ __all__ = [
     "oracle_for",
     "default_ladder",
     "LADDER",
-    "V0_TASKS",
     "V1_TASKS",
     "NAIVE_DAMPING",
     "NAIVE_MARGIN",
@@ -75,13 +73,12 @@ KINDS = ("naive", "rule", "oracle", "learned")
 #: name of the v1 observation entry of the commanded speed (``gfb_env.envs.units.SPEED_COMMAND``)
 SPEED_COMMAND = "speed_command"
 
-try:  # the task lists have one owner
-    from gfb_env.envs import ENV_IDS, V0_IDS
+try:  # the task list has one owner (the retired v0 ids are no task of the ladder)
+    from gfb_env.envs import ENV_IDS
 
-    V0_TASKS: tuple[str, ...] = tuple(V0_IDS)
-    V1_TASKS: tuple[str, ...] = tuple(t for t in ENV_IDS if t not in V0_IDS)
+    V1_TASKS: tuple[str, ...] = tuple(t for t in ENV_IDS if t.endswith("-v1"))
 except ImportError:  # pragma: no cover - gfb_env is a dependency
-    V0_TASKS, V1_TASKS = (), ()
+    V1_TASKS = ()
 
 
 @dataclass(frozen=True)
@@ -189,20 +186,6 @@ def make_naive(env) -> NaiveRampAgent:
     return NaiveRampAgent(ControlSpec.from_env(env, nmap), nmap, NAIVE_DAMPING, NAIVE_MARGIN)
 
 
-def make_scripted(name: str, env) -> Policy:
-    """The scripted baseline ``name`` of :func:`gfb_agents.scripted.make_scripted_agents`."""
-    agents = make_scripted_agents(env)
-    if name not in agents:
-        raise LookupError(f"no scripted agent {name!r} for this task; known: {sorted(agents)}")
-    return agents[name]
-
-
-def make_identify_map(env) -> Policy:
-    from gfb_agents.identify import IdentifyingAgent
-
-    return IdentifyingAgent(env)
-
-
 def make_v1_rule(name: str, env) -> Policy:
     """The v1 rule ``name`` of :func:`gfb_agents.rules_v1.make_rule`."""
     from gfb_agents.rules_v1 import make_rule
@@ -217,26 +200,9 @@ def make_commanded_oracle(env) -> Policy:
     return CommandedOracle(env)
 
 
-def make_schedule_oracle(env) -> Policy:
-    from gfb_agents.identify import OracleAgent
-
-    return OracleAgent(env)
-
-
 #: the registry: name -> entry (use :func:`register`; :func:`default_ladder` fills it on first use)
 LADDER: dict[str, AgentEntry] = {}
 _DEFAULTS_LOADED = False
-
-#: the v0 table's scripted rules (kept so that table stays reproducible)
-_V0_RULES = (
-    ("paper_ramp_D0.3", "the paper's ramp at half the motor limit to the nominal target, D_W = 0.3"),
-    ("paper_ramp_D1", "the same at D_W = 1"),
-    ("paper_ramp_D3", "the same at D_W = 3"),
-    ("paper_ramp_D10", "the same at D_W = 10"),
-    ("map_informed", "d_opt of the nominal map, motor limit, hold at 0.95 Lambda_c(d_opt)"),
-    ("feedback", "map_informed plus whirl detection, back-off and return"),
-    ("damping_search", "probe the whirl onset at three dampings, run at the best"),
-)
 
 _RU1, _RUR1, _WR1 = "gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1"
 #: the v1 rules (``docs/agents.md``) and the tasks each was written for
@@ -257,8 +223,8 @@ def register(entry: AgentEntry, replace: bool = False, supersede: bool = False) 
 
     ``supersede=True`` (for a naive or oracle entry): every other entry of the same kind gives up
     ``entry.tasks`` (and is removed if no task is left), so each task keeps exactly one naive and one
-    oracle -- e.g. the v1 oracle takes the v1 tasks from the built-in ``oracle``, which keeps the v0
-    ones."""
+    oracle -- e.g. an oracle registered for RunUp-v1 takes that task from the built-in ``oracle_v1``,
+    which keeps the others."""
     _ensure_defaults()
     if entry.name in LADDER and not replace:
         raise ValueError(f"agent {entry.name!r} is already registered (pass replace=True)")
@@ -271,7 +237,7 @@ def register(entry: AgentEntry, replace: bool = False, supersede: bool = False) 
 
 def set_tasks(name: str, tasks: Iterable[str]) -> None:
     """Restrict (or extend) the tasks of the registered entry ``name``; no task left removes it (e.g.
-    ``set_tasks("paper_ramp_D0.3", V0_TASKS)`` keeps a v0 rule off the v1 tasks)."""
+    ``set_tasks("margin_search", ["gfb_env/RunUp-v1"])`` keeps a rule off the other tasks)."""
     _ensure_defaults()
     if name not in LADDER:
         raise KeyError(f"no registered agent {name!r}")
@@ -308,33 +274,12 @@ def scoped():
 
 def default_ladder() -> dict[str, AgentEntry]:
     """The built-in entries (module docstring), by name; learned ones from the committed policies."""
-    all_tasks = V0_TASKS + V1_TASKS
     out = [
-        AgentEntry("naive", "naive", all_tasks, make_naive, description="D_W = 1, motor limit, hold"),
+        AgentEntry("naive", "naive", V1_TASKS, make_naive, description="D_W = 1, motor limit, hold"),
     ]
-    # the v0 rules fly the v0 targets (they read no speed command): v0 only; the v1 tasks have their own
-    # rules (gfb_agents.rules_v1)
-    for name, desc in _V0_RULES:
-        out.append(
-            AgentEntry(name, "rule", V0_TASKS, functools.partial(make_scripted, name), description=desc)
-        )
-    out.append(
-        AgentEntry(
-            "identify_map", "rule", V0_TASKS, make_identify_map, description="fit the bearing, fly the table"
-        )
-    )
     # the v1 rules (gfb_agents.rules_v1): each on the tasks it was written for
     for name, tasks, desc in _V1_RULES:
         out.append(AgentEntry(name, "rule", tasks, functools.partial(make_v1_rule, name), description=desc))
-    out.append(
-        AgentEntry(
-            "oracle",
-            "oracle",
-            V0_TASKS,
-            make_schedule_oracle,
-            description="identify_map's schedule on the true draw",
-        )
-    )
     out.append(
         AgentEntry(
             "oracle_v1",
@@ -361,32 +306,12 @@ def _ensure_defaults() -> None:
             LADDER.setdefault(k, v)
 
 
-def _run_dirs(d: Path) -> list[Path]:
-    """Model directories of a learned agent: ``d`` itself (``model.zip``) or its ``seed*/`` / ``run*/``
-    subfolders with a model (``model.zip`` or ``best/model.zip``), sorted."""
-    if (d / "model.zip").exists():
-        return [d]
-    subs = [
-        s
-        for s in sorted(d.iterdir())
-        if s.is_dir() and ((s / "model.zip").exists() or (s / "best" / "model.zip").exists())
-    ]
-    return subs
-
-
-def _meta_env_id(run_dir: Path) -> str | None:
-    import json
-
-    for p in (run_dir / "run.json", run_dir / "policy.json"):
-        if p.exists():
-            return json.loads(p.read_text()).get("env_id")
-    return None
-
-
 def learned_entries(root: str | Path) -> list[AgentEntry]:
     """A learned entry per folder of ``root`` (the name is the folder's; the task from its ``run.json``
     or ``policy.json``).  A folder is one agent: either one model (``model.zip``) or one model per
     training seed (``seed*/`` subfolders, as ``gfb_agents.train --seeds`` writes them)."""
+    from gfb_agents.learned.evaluate import run_dirs, run_env_id
+
     root = Path(root)
     if not root.is_dir():
         raise FileNotFoundError(f"no policies folder {root}")
@@ -394,9 +319,9 @@ def learned_entries(root: str | Path) -> list[AgentEntry]:
     for d in sorted(root.iterdir()):
         if not d.is_dir():
             continue
-        runs = _run_dirs(d)
+        runs = run_dirs(d)
         if runs:
-            env_id = _meta_env_id(runs[0])
+            env_id = run_env_id(runs[0])
             if env_id is None:
                 raise ValueError(f"{runs[0]} has no run.json/policy.json naming its env_id")
             out.append(AgentEntry(d.name, "learned", (env_id,), run_paths=tuple(str(r) for r in runs)))
@@ -405,11 +330,13 @@ def learned_entries(root: str | Path) -> list[AgentEntry]:
 
 def register_learned(path: str | Path, name: str | None = None, replace: bool = True) -> AgentEntry:
     """Register the learned agent in ``path`` (one model, or one per training seed in ``seed*/``)."""
+    from gfb_agents.learned.evaluate import run_dirs, run_env_id
+
     p = Path(path)
-    runs = _run_dirs(p) if p.is_dir() else []
+    runs = run_dirs(p) if p.is_dir() else []
     if not runs:
         raise FileNotFoundError(f"no trained model (model.zip or seed*/model.zip) in {p}")
-    env_id = _meta_env_id(runs[0])
+    env_id = run_env_id(runs[0])
     if env_id is None:
         raise ValueError(f"{runs[0]} has no run.json naming its env_id")
     return register(

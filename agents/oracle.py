@@ -20,8 +20,8 @@ The naive baseline (0 on that scale) is :class:`gfb_agents.ladder.NaiveRampAgent
 agent on every task.
 
 It follows the agents' interface (:class:`gfb_agents.scripted.Policy`: ``reset()``, ``predict(obs,
-...)``; the oracle takes the episode through ``observe_reset_info`` like
-:class:`gfb_agents.identify.OracleAgent`), and also offer ``reset(env, obs, info)`` / ``act(obs)``.
+...)``; the oracle takes the episode through ``observe_reset_info``), and also offer
+``reset(env, obs, info)`` / ``act(obs)``.
 One env at a time.
 """
 

@@ -53,7 +53,7 @@ def test_nominal_map_missing_hysteresis_map_is_an_error_not_an_empty_fold(tmp_pa
 
     from gfb_agents.nominal_map import NominalMap
 
-    env = gym.make("gfb_env/RunUp-v0")
+    env = gym.make("gfb_env/RunUp-v1")
     nmap = NominalMap.from_env(env)  # the shipped map: it lacks K_W = 0.50, so the fold is unknown
     assert len(nmap.fold) == 0 and math.isnan(nmap.fold_at(2.0))
     with pytest.raises(FileNotFoundError, match="hysteresis"):
@@ -64,7 +64,7 @@ def test_nominal_map_missing_hysteresis_map_is_an_error_not_an_empty_fold(tmp_pa
 def test_load_learned_policies_missing_folder_raises(tmp_path):
     from gfb_agents.learned.evaluate import POLICIES_DIR, load_learned_policies
 
-    assert (POLICIES_DIR / "WhirlRecovery_sac" / "model.zip").is_file()
+    assert (POLICIES_DIR / "WhirlRecovery-v1_sac" / "seed0" / "model.zip").is_file()
     with pytest.raises(FileNotFoundError, match="no policies folder"):
         load_learned_policies(tmp_path / "none")
     assert load_learned_policies(tmp_path) == []  # existing but empty: no policies, not an error
@@ -89,7 +89,7 @@ def test_train_finds_its_hyperparameters_in_the_package():
     from gfb_agents.learned.train import HYPERPARAMS_DIR, load_hyperparams
 
     assert HYPERPARAMS_DIR == Path(gfb_agents.learned.train.__file__).resolve().parent.parent / "hyperparams"
-    assert load_hyperparams("sac", "gfb_env/WhirlRecovery-v0")
+    assert load_hyperparams("sac", "gfb_env/WhirlRecovery-v1")
 
 
 # ------------------------------------------------------------------------------------ task constants

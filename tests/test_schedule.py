@@ -134,15 +134,18 @@ def test_cli_writes_the_schedule_map_and_summary(tmp_path, capsys):
 
 
 def test_the_schedule_as_a_policy_succeeds_on_run_up():
-    env = gym.make("gfb_env/RunUp-v0")
+    env = gym.make("gfb_env/RunUp-v1")
     u = env.unwrapped
     m = GFBModel("viscoelastic", u.grid, bearing=NOMINAL_BEARING)
-    lam_t = u.target_bearing_number
-    sch = design_run_up_schedule(m, lam_t, margin=0.04, fold_dampings=0, rate=u.max_rate(NOMINAL_BEARING))
+    # seed 1 (development): the damping gain drawn is 1.03, near the nominal plant the schedule is
+    # designed for; its command (Lambda 0.674) lies 4 % below the best stable speed
+    _, info = env.reset(seed=1)
+    lam_t = info["speed_command_bearing_number"]
+    sch = design_run_up_schedule(m, lam_t, margin=0.03, fold_dampings=0, rate=u.max_rate(NOMINAL_BEARING))
     assert sch.feasible
     agent = ScheduleAgent.from_schedule(ControlSpec.from_env(env), sch)
     assert agent.ramp == pytest.approx(1.0) and agent.damping == sch.foil_damping
-    res = run_episode(env, agent, seed=3)
+    res = run_episode(env, agent, seed=1)
     assert res.success, res
 
 

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from gfb_agents.nominal_map import NominalMap
-from gfb_agents.scripted import ControlSpec, MapInformedAgent, ScriptedPolicy
+from gfb_agents.scripted import ControlSpec, MapInformedAgent, ScriptedPolicy, TrackerMemory
 from gfb_env.envs.base import viscoelastic_model
 from gfb_env.envs.units import N_ROTOR_OBS, OBS_ETA, OBS_XI
 from gfb_env.equilibrium import EquilibriumError, find_equilibrium
@@ -155,6 +155,15 @@ class BearingIdentifier:
         return BearingEstimate(float(p[0]), float(p[1]), float(p[2]), rms, self.solves)
 
 
+@dataclass
+class IdentifyingMemory(TrackerMemory):
+    """:class:`IdentifyingAgent`'s memory: the schedule of this episode and the estimate it rests on."""
+
+    setpoint: float = 0.0
+    damping: float = 1.0
+    estimate: BearingEstimate | None = None
+
+
 class IdentifyingAgent(ScriptedPolicy):
     """Identify the drawn bearing from the first observation, then fly the
     map-informed schedule for it (the env's published table at the estimate).
@@ -183,12 +192,12 @@ class IdentifyingAgent(ScriptedPolicy):
         self.nominal = u.nominal_bearing
         self.last_estimate: BearingEstimate | None = None
 
-    def _new_memory(self) -> dict:
-        m = super()._new_memory()
-        m.update({"setpoint": self.nominal_setpoint_rpm, "damping": self.nominal_damping, "estimate": None})
-        return m
+    def _new_memory(self) -> IdentifyingMemory:
+        return IdentifyingMemory(
+            rate=self.spec.rpm_per_step, setpoint=self.nominal_setpoint_rpm, damping=self.nominal_damping
+        )
 
-    def _estimate(self, obs: np.ndarray, m: dict) -> BearingEstimate | None:
+    def _estimate(self, obs: np.ndarray, m: IdentifyingMemory) -> BearingEstimate | None:
         """The bearing of this episode (None: the nominal schedule)."""
         return self.identifier.fit(obs) if self.identifier is not None else None
 
@@ -205,10 +214,10 @@ class IdentifyingAgent(ScriptedPolicy):
             self.spec.actions.rpm_per_step(b, self.control_interval),
         )
 
-    def _act(self, obs, rpm, m):
-        if m["k"] == 0:
+    def _act(self, obs, rpm, m: IdentifyingMemory):
+        if m.k == 0:
             est = self._estimate(obs, m)
             if est is not None:
-                m["setpoint"], m["damping"], m["rate"] = self.schedule_for(est)
-            m["estimate"] = self.last_estimate = est
-        return [self.track(m, rpm, m["setpoint"]), self.spec.damping_action(m["damping"])]
+                m.setpoint, m.damping, m.rate = self.schedule_for(est)
+            m.estimate = self.last_estimate = est
+        return [self.track(m, rpm, m.setpoint), self.spec.damping_action(m.damping)]

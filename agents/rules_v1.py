@@ -43,18 +43,23 @@ Measured: ``docs/agents.md``.
 
 from __future__ import annotations
 
+import dataclasses
+import enum
 import math
+from dataclasses import dataclass, field
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 from scipy.optimize import least_squares
 
 from gfb_agents.identify import BearingEstimate, BearingIdentifier, IdentifyingAgent
 from gfb_agents.nominal_map import NominalMap
-from gfb_agents.scripted import ControlSpec, MapInformedAgent, ScriptedPolicy
+from gfb_agents.scripted import ControlSpec, MapInformedAgent, ScriptedPolicy, TrackerMemory
 from gfb_env.analysis import jacobian_eigenvalues
 from gfb_env.envs.base import viscoelastic_model
 from gfb_env.equilibrium import EquilibriumError, find_equilibrium
 from gfb_env.model import GFBModel
+from gfb_env.params import BearingParameters
 
 __all__ = [
     "RULE_NAMES",
@@ -215,25 +220,65 @@ class GainPosterior:
         self.measurements.append(("whirl", lam, d_cmd))
 
 
+@dataclass(frozen=True)
+class OperatingPointConfig:
+    """The settings of :func:`choose_operating_point` (validated).
+
+    Attributes:
+        damping_range: the commanded dampings searched (low, high), log-spaced.
+        rel_sd: relative sd of the plant's ``Lambda_c`` (identification error, interpolation).
+        fail_cost: cost of an uncertified end in units of the full progress.
+        n_damping, n_lambda: grid sizes of the search over dampings and speeds.
+        level: the growth rate that counts as stable (``< 0``: a decay-rate margin).
+        target_weight: the on-target bonus in units of the certified bonus (v1 reward: 25 / 50).
+        tolerance: relative tolerance of the success test's target.
+    """
+
+    damping_range: tuple[float, float]
+    rel_sd: float = 0.005
+    fail_cost: float = 0.3
+    n_damping: int = 49
+    n_lambda: int = 200
+    level: float = 0.0
+    target_weight: float = 0.5
+    tolerance: float = 0.02
+
+    def __post_init__(self) -> None:
+        lo, hi = (float(x) for x in self.damping_range)
+        if not (0.0 < lo <= hi and math.isfinite(hi)):
+            raise ValueError(f"damping_range must be 0 < low <= high, got {self.damping_range!r}")
+        object.__setattr__(self, "damping_range", (lo, hi))
+        if not (self.rel_sd > 0.0 and math.isfinite(self.rel_sd)):
+            raise ValueError(f"rel_sd must be positive, got {self.rel_sd!r}")
+        for name in ("n_damping", "n_lambda"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+        for name in ("fail_cost", "level", "target_weight", "tolerance"):
+            if not math.isfinite(float(getattr(self, name))):
+                raise ValueError(f"{name} must be finite, got {getattr(self, name)!r}")
+
+
+class OperatingPoint(NamedTuple):
+    """The choice of :func:`choose_operating_point`: commanded damping, Lambda set-point, expected value."""
+
+    damping: float
+    bearing_number: float
+    value: float
+
+
 def choose_operating_point(
     table: StabilityTable,
     posterior: GainPosterior,
     lam_ref: float,
     lam_cmd: float,
     lam_cap: float,
-    damping_range: tuple[float, float],
-    rel_sd: float = 0.005,
-    fail_cost: float = 0.3,
-    n_damping: int = 49,
-    n_lambda: int = 200,
-    level: float = 0.0,
-    target_weight: float = 0.5,
-    tolerance: float = 0.02,
-) -> tuple[float, float, float]:
-    """``(commanded D_W, Lambda set-point, expected value)`` maximising the expected terminal reward
+    config: OperatingPointConfig,
+) -> OperatingPoint:
+    """The commanded damping and Lambda set-point maximising the expected terminal reward
     ``E[p(Lambda) 1{stable}] + target_weight P(stable and on target) - fail_cost P(unstable)`` over
-    commanded dampings and speeds (in units of the certified bonus: the v1 reward's on-target bonus is
-    ``target_weight = 25 / 50`` of it).
+    commanded dampings and speeds up to ``min(lam_cmd, lam_cap)`` (in units of the certified bonus: the
+    v1 reward's on-target bonus is ``target_weight = 25 / 50`` of it); ``config``:
+    :class:`OperatingPointConfig`.
 
     ``p = clip((Lambda - lam_ref)/(lam_cmd - lam_ref), 0, 1)`` as the v1 reward; "on target" means
     ``Lambda >= (1 - tolerance) min(lam_cmd, lambda_best(g))`` with ``lambda_best(g)`` the best boundary
@@ -245,6 +290,9 @@ def choose_operating_point(
     command below every plausible boundary) go to the damping with the highest expected boundary."""
     from scipy.special import ndtr
 
+    damping_range, rel_sd, fail_cost = config.damping_range, config.rel_sd, config.fail_cost
+    n_damping, n_lambda, level = int(config.n_damping), int(config.n_lambda), config.level
+    target_weight, tolerance = config.target_weight, config.tolerance
     w = posterior.weights
     ds = np.geomspace(*damping_range, n_damping)
     lc = table.critical(posterior.gains[:, None] * ds[None, :], level)  # (n_g, n_d)
@@ -265,10 +313,21 @@ def choose_operating_point(
         k = int(np.argmax(val))
         if val[k] > best[2]:
             best = (float(ds[j]), float(lams[k]), float(val[k]))
-    return best
+    return OperatingPoint(*best)
 
 
 # ----------------------------------------------------------------------------------------------
+@dataclass
+class DecayEvent:
+    """An open event of :class:`DecayMeter`: steps since the jump (``k``), the points kept ``(step, ln
+    excess, Lambda, commanded damping)``, the previous envelope and the damping of the last step."""
+
+    prev: float
+    k: int = 0
+    pts: list[tuple[int, float, float, float]] = field(default_factory=list)
+    d_last: float | None = None
+
+
 class DecayMeter:
     """The decay of the whirl mode after a shock, from the per-step orbit envelope.
 
@@ -286,10 +345,11 @@ class DecayMeter:
     ):
         self.jump, self.lo, self.hi, self.skip, self.min_points = jump, lo, hi, skip, min_points
         self.floor: float | None = None
-        self.event: dict | None = None
+        self.event: DecayEvent | None = None
 
-    def _open(self, envelope: float) -> None:
-        self.event = {"k": 0, "pts": [], "prev": envelope, "d_last": None}
+    def open_event(self, envelope: float) -> None:
+        """Open an event now (a shock, or a collapsing whirl whose tail decays like a shock's transient)."""
+        self.event = DecayEvent(prev=envelope)
 
     def update(self, envelope: float, lam: float, d_cmd: float) -> list[tuple[float, float, float, int]]:
         """Feed one step's envelope, Lambda and the damping command that was in force over the step."""
@@ -297,36 +357,36 @@ class DecayMeter:
             self.floor = envelope
         if self.event is None:
             if envelope > self.floor + self.jump:
-                self._open(envelope)
+                self.open_event(envelope)
             else:
                 self.floor = 0.8 * self.floor + 0.2 * min(envelope, self.floor + 0.02)
             return []
         ev = self.event
-        ev["k"] += 1
+        ev.k += 1
         exc = envelope - self.floor
-        if ev["k"] > self.skip and envelope > 1.3 * ev["prev"]:  # another shock: close, start anew
+        if ev.k > self.skip and envelope > 1.3 * ev.prev:  # another shock: close, start anew
             res = self._close()
-            self._open(envelope)
+            self.open_event(envelope)
             return res
-        ev["prev"] = envelope
-        switched = ev["d_last"] is not None and abs(math.log(d_cmd / ev["d_last"])) > 1e-9
-        ev["d_last"] = d_cmd
-        if ev["k"] > self.skip and self.lo < exc < self.hi and not switched:
-            ev["pts"].append((ev["k"], math.log(exc), lam, d_cmd))
-        if (exc < self.lo and ev["k"] > self.skip) or ev["k"] > 14:
+        ev.prev = envelope
+        switched = ev.d_last is not None and abs(math.log(d_cmd / ev.d_last)) > 1e-9
+        ev.d_last = d_cmd
+        if ev.k > self.skip and self.lo < exc < self.hi and not switched:
+            ev.pts.append((ev.k, math.log(exc), lam, d_cmd))
+        if (exc < self.lo and ev.k > self.skip) or ev.k > 14:
             return self._close()
         return []
 
     @property
     def points(self) -> int:
         """Points of the open event (0 if none)."""
-        return len(self.event["pts"]) if self.event is not None else 0
+        return len(self.event.pts) if self.event is not None else 0
 
     def _close(self) -> list[tuple[float, float, float, int]]:
         ev, self.event = self.event, None
         out = []
-        for d in sorted({p[3] for p in ev["pts"]}):
-            pts = [p for p in ev["pts"] if p[3] == d]
+        for d in sorted({p[3] for p in ev.pts}):
+            pts = [p for p in ev.pts if p[3] == d]
             if len(pts) < self.min_points:
                 continue
             k = np.array([p[0] for p in pts], dtype=float)
@@ -373,6 +433,16 @@ def unbalance_vectors(
     return out
 
 
+@dataclass
+class ProbeSegment:
+    """The samples of :class:`UnbalanceProbe` at one commanded damping ``d``: observation indices and
+    the demodulated channels."""
+
+    d: float
+    k: list[int] = field(default_factory=list)
+    y: list[np.ndarray] = field(default_factory=list)
+
+
 class UnbalanceProbe:
     """Demodulate the 1x unbalance orbit at a few commanded dampings and infer the damping gain.
 
@@ -388,25 +458,25 @@ class UnbalanceProbe:
 
     def __init__(self, n_probes: int):
         self.n_probes = int(n_probes)
-        self.segments: list[dict] = []  # {"d": commanded damping, "k": [...], "y": [...]}
+        self.segments: list[ProbeSegment] = []
 
     def channels(self, obs: np.ndarray) -> np.ndarray:
         return np.r_[obs[0:4], obs[8 : 8 + self.n_probes]].astype(float)
 
     def add(self, d_cmd: float, k: int, obs: np.ndarray) -> None:
-        if not self.segments or self.segments[-1]["d"] != d_cmd:
-            self.segments.append({"d": d_cmd, "k": [], "y": []})
-        self.segments[-1]["k"].append(k)
-        self.segments[-1]["y"].append(self.channels(obs))
+        if not self.segments or self.segments[-1].d != d_cmd:
+            self.segments.append(ProbeSegment(d_cmd))
+        self.segments[-1].k.append(k)
+        self.segments[-1].y.append(self.channels(obs))
 
     def amplitudes(self, phi: float) -> tuple[np.ndarray, np.ndarray]:
         """Complex 1x amplitudes ``w = A - iB`` (segments x channels) and their per-component variance."""
         sd = np.r_[PROBE_CHANNEL_SD, np.full(self.n_probes, TAP_SD)]
         w, var = [], []
         for seg in self.segments:
-            th = phi * np.asarray(seg["k"], dtype=float)
+            th = phi * np.asarray(seg.k, dtype=float)
             X = np.column_stack([np.ones_like(th), np.cos(th), np.sin(th)])
-            coef, *_ = np.linalg.lstsq(X, np.asarray(seg["y"]), rcond=None)
+            coef, *_ = np.linalg.lstsq(X, np.asarray(seg.y), rcond=None)
             w.append(coef[1] - 1j * coef[2])
             cov = np.linalg.pinv(X.T @ X)
             var.append(0.5 * (cov[1, 1] + cov[2, 2]) * sd**2)
@@ -530,6 +600,13 @@ def refine_bearing(
 
 
 # ----------------------------------------------------------------------------------------------
+@dataclass
+class RuleMemory(TrackerMemory):
+    """A v1 rule's memory: the tracker's, plus the task's command (read once per episode)."""
+
+    cmd_rpm: float | None = None
+
+
 class _V1Rule(ScriptedPolicy):
     """Shared plumbing: the command, the nominal bearing's Lambda <-> rpm, the hold window."""
 
@@ -548,16 +625,26 @@ class _V1Rule(ScriptedPolicy):
         # the speed at which the v1 progress is zero (RunUp: the start; WhirlRecovery: 0.85 lambda_best)
         self.reference_bearing_number = getattr(u, "reference_bearing_number", None)
 
-    def command_rpm(self, obs: np.ndarray, m: dict) -> float | None:
-        if m.get("cmd_rpm") is None:
-            m["cmd_rpm"] = self.command.rpm(obs)
-        return m["cmd_rpm"]
+    def _new_memory(self) -> RuleMemory:
+        return RuleMemory(rate=self.spec.rpm_per_step)
 
-    def steps_left(self, obs: np.ndarray, m: dict) -> int:
+    def command_rpm(self, obs: np.ndarray, m: RuleMemory) -> float | None:
+        if m.cmd_rpm is None:
+            m.cmd_rpm = self.command.rpm(obs)
+        return m.cmd_rpm
+
+    def steps_left(self, obs: np.ndarray, m: RuleMemory) -> int:
         f = time_left_fraction(self.layout, obs)
         if f is not None:
             return int(round(f * self.episode_steps))
-        return self.episode_steps - m["k"]
+        return self.episode_steps - m.k
+
+
+@dataclass
+class CommandCappedMemory(RuleMemory):
+    """:class:`CommandCappedAgent`'s memory: its own and the inner schedule's."""
+
+    inner: TrackerMemory | None = None
 
 
 class CommandCappedAgent(_V1Rule):
@@ -568,21 +655,118 @@ class CommandCappedAgent(_V1Rule):
         super().__init__(name, env, **kw)
         self.inner = inner
 
-    def _new_memory(self) -> dict:
-        m = super()._new_memory()
-        m["inner"] = self.inner._new_memory()
-        return m
+    def _new_memory(self) -> CommandCappedMemory:
+        return CommandCappedMemory(rate=self.spec.rpm_per_step, inner=self.inner._new_memory())
 
-    def _act(self, obs, rpm, m):
-        mi = m["inner"]
+    def _act(self, obs, rpm, m: CommandCappedMemory):
+        mi = m.inner
         self.inner._update_rate(mi, rpm)
         a = np.asarray(self.inner._act(obs, rpm, mi), dtype=float)
-        mi["prev_rpm"], mi["prev_a0"], mi["k"] = rpm, float(a[0]), mi["k"] + 1
+        mi.prev_rpm, mi.prev_a0, mi.k = rpm, float(a[0]), mi.k + 1
         cmd = self.command_rpm(obs, m)
-        sp = mi.get("setpoint", getattr(self.inner, "setpoint_rpm", None))
+        # the inner schedule's set-point: its memory's (identify_map: the estimate's) or its own
+        sp = getattr(mi, "setpoint", getattr(self.inner, "setpoint_rpm", None))
         if cmd is not None and sp is not None and cmd < sp:
             a[0] = self.track(mi, rpm, cmd)
         return a
+
+
+class Mode(enum.Enum):
+    """What :class:`MarginSearchAgent` (and :class:`RecoveryAgent`) is doing; one handler method each
+    (:attr:`MarginSearchAgent.MODE_HANDLERS`)."""
+
+    #: randomised task: averaging the observations at the start speed for the identification
+    IDENTIFY = "identify"
+    #: nominal task, first step: build the plant's table
+    INIT = "init"
+    #: the unbalance probe at a constant speed (commanded dampings in turn)
+    PROBE = "probe"
+    #: at (or on the way to) the chosen operating point
+    RUN = "run"
+    #: backing off after a detected whirl, until the envelope is calm again
+    RECOVER = "recover"
+    #: RecoveryAgent: decelerating out of the start whirl
+    DIP = "dip"
+
+
+@dataclass
+class ProbeState:
+    """Progress of the unbalance probe: the dampings in turn (``plan``), the one in force (``j``), steps
+    settled at it, samples taken at it (``n``), quiet steps in a row (no shock)."""
+
+    plan: list[float]
+    j: int = 0
+    settle: int = 0
+    n: int = 0
+    quiet: int = 0
+
+
+@dataclass
+class CreepState:
+    """The optional boundary creep (:meth:`MarginSearchAgent._creep`): the set-point crept to, the frozen
+    damping, the whirl onset found (None: none yet) and the final set-point (None: still creeping)."""
+
+    rpm: float
+    d: float
+    onset_rpm: float | None = None
+    final_rpm: float | None = None
+
+
+@dataclass
+class MarginSearchMemory(RuleMemory):
+    """:class:`MarginSearchAgent`'s memory of one episode.
+
+    Attributes:
+        mode: what the rule is doing (:class:`Mode`).
+        obs: the observations averaged for the identification at the start speed.
+        table, bearing, model: the plant of the present estimate (its stability table, bearing, model).
+        estimate, estimate_initial: the identified bearing (after and before the refinement).
+        post: the posterior over the damping gain ``g``; meter: the decay meter of shocks.
+        d_cmd: the commanded damping of the decision; d_prev: the damping in force over the last step.
+        setpoint: the speed set-point of the decision (rpm); dirty: decide again at the next step.
+        calm: calm steps in a row while recovering; whirl_count: whirls detected; cap: the highest
+            Lambda allowed after a whirl; rel_sd: relative sd of the plant's boundary.
+        start_obs, ramp_obs, refined: observations at the probe's speed and along the run-up, and
+            whether the bias-free re-identification is done.
+        lam_ref: the speed of zero progress (v1 reward); probe_rpm: the probe's speed.
+        probe, unb, probe_ll: the probe's progress, demodulator and log-likelihood per gain.
+        probe_d: the damping switched to during a shock's decay (two rates from one shock).
+        prev_excess, grow: the whirl guard's last envelope excess and steps of growth in a row.
+        recover_rpm: the set-point while recovering; creep: the boundary creep's state.
+        frozen_sp: the set-point at the start of the last hold window (it may only come down).
+    """
+
+    mode: Mode = Mode.INIT
+    obs: list[np.ndarray] = field(default_factory=list)
+    table: StabilityTable | None = None
+    bearing: BearingParameters | None = None
+    model: GFBModel | None = None
+    estimate: BearingEstimate | None = None
+    estimate_initial: BearingEstimate | None = None
+    post: GainPosterior | None = None
+    meter: DecayMeter = field(default_factory=DecayMeter)
+    d_cmd: float = 1.0
+    d_prev: float | None = None
+    setpoint: float | None = None
+    dirty: bool = True
+    calm: int = 0
+    whirl_count: int = 0
+    cap: float = math.inf
+    rel_sd: float = 0.0
+    start_obs: list[np.ndarray] = field(default_factory=list)
+    ramp_obs: list[tuple[float, np.ndarray]] = field(default_factory=list)
+    refined: bool = False
+    lam_ref: float | None = None
+    probe_rpm: float | None = None
+    probe: ProbeState | None = None
+    unb: UnbalanceProbe | None = None
+    probe_ll: np.ndarray | None = None
+    probe_d: float | None = None
+    prev_excess: float = 0.0
+    grow: int = 0
+    recover_rpm: float | None = None
+    creep: CreepState | None = None
+    frozen_sp: float | None = None
 
 
 class MarginSearchAgent(_V1Rule):
@@ -602,7 +786,19 @@ class MarginSearchAgent(_V1Rule):
             Measured harmful: the whirl mode has no excitation between the rare shocks, so it stays
             invisible while the creep passes Lambda_c (seen 7.7 % above lambda_best before the guard
             fired) and then grows into a touchdown (2 of 4 DEV episodes at creep_rate 0.0015).
+
+    Each step is handled by the method of the memory's :class:`Mode` (:attr:`MODE_HANDLERS`); a handler
+    that changes the mode hands the same step on to the next mode's handler where the rule acts at once.
     """
+
+    #: the handler method of each mode
+    MODE_HANDLERS: ClassVar[dict[Mode, str]] = {
+        Mode.IDENTIFY: "_on_identify",
+        Mode.INIT: "_on_init",
+        Mode.PROBE: "_on_probe",
+        Mode.RUN: "_on_run",
+        Mode.RECOVER: "_on_recover",
+    }
 
     def __init__(
         self,
@@ -644,13 +840,21 @@ class MarginSearchAgent(_V1Rule):
         self.unbalance_temper = 0.6
         self.fail_cost, self.backoff = float(fail_cost), float(backoff)
         self.safe_growth_rate = float(safe_growth_rate)
+        # the decision's settings but the boundary's uncertainty (the memory's: it drops after the refit)
+        self.decision = OperatingPointConfig(
+            damping_range=self.damping_range, fail_cost=self.fail_cost, level=self.safe_growth_rate
+        )
         self.probe_points, self.probe_factor = int(probe_points), float(probe_factor)
         self.unbalance_dampings = tuple(float(d) for d in unbalance_dampings)
         self.unbalance_samples = int(unbalance_samples)
         self.n_probes = int(u.n_pressure_probes)
         self.creep_rate, self.creep_margin, self.creep_reserve = float(creep_rate), float(creep_margin), 40
         self._tables: dict = {}
-        self.last: dict | None = None
+        #: the latest decision (for inspection)
+        self.last: OperatingPoint | None = None
+        missing = [h for h in self.MODE_HANDLERS.values() if not callable(getattr(self, h, None))]
+        if missing:  # pragma: no cover - a programming error of a subclass
+            raise TypeError(f"{type(self).__name__} lacks the mode handlers {missing}")
 
     # -- the plant's table --------------------------------------------------------------------
     def _nominal_table(self) -> StabilityTable:
@@ -669,79 +873,55 @@ class MarginSearchAgent(_V1Rule):
         return StabilityTable.compute(model, min(lam0, 0.62 * lb), 1.12 * lb), b, model
 
     # -- memory ---------------------------------------------------------------------------------
-    def _new_memory(self) -> dict:
-        m = super()._new_memory()
-        m.update(
-            {
-                "mode": "identify" if self.n_identify else "init",
-                "obs": [],
-                "table": None,
-                "bearing": self.nominal,
-                "post": GainPosterior(self.gain_range),
-                "meter": DecayMeter(),
-                "d_cmd": self.nmap.d_opt,
-                "d_prev": None,
-                "setpoint": None,
-                "dirty": True,
-                "calm": 0,
-                "whirl_count": 0,
-                "cap": math.inf,
-                "rel_sd": self.rel_sd,
-                "start_obs": [],
-                "ramp_obs": [],
-                "refined": not self.randomized,
-            }
+    def _new_memory(self) -> MarginSearchMemory:
+        return MarginSearchMemory(
+            rate=self.spec.rpm_per_step,
+            mode=Mode.IDENTIFY if self.n_identify else Mode.INIT,
+            bearing=self.nominal,
+            post=GainPosterior(self.gain_range),
+            d_cmd=self.nmap.d_opt,
+            rel_sd=self.rel_sd,
+            refined=not self.randomized,
         )
-        return m
 
-    def _lam(self, m: dict, rpm: float) -> float:
-        return m["bearing"].bearing_number_at(rpm)
+    def _lam(self, m: MarginSearchMemory, rpm: float) -> float:
+        return m.bearing.bearing_number_at(rpm)
 
-    def _decide(self, m: dict, obs: np.ndarray) -> None:
-        b, table = m["bearing"], m["table"]
+    def _decide(self, m: MarginSearchMemory, obs: np.ndarray) -> None:
+        b, table = m.bearing, m.table
         cmd = self.command_rpm(obs, m)
         lam_cmd = b.bearing_number_at(cmd) if cmd is not None else table.lambdas[-1]
-        lam_ref = m["lam_ref"]
-        cap = min(m["cap"], 0.98 * b.bearing_number_at(self.max_speed_rpm))
-        d, lam, val = choose_operating_point(
-            table,
-            m["post"],
-            lam_ref,
-            lam_cmd,
-            cap,
-            self.damping_range,
-            m["rel_sd"],
-            self.fail_cost,
-            level=self.safe_growth_rate,
-        )
-        m["d_cmd"], m["setpoint"] = d, b.speed_rpm_at(lam)
-        m["dirty"] = False
-        self.last = {"d_cmd": d, "lam": lam, "value": val, "weights": m["post"].weights}
+        cap = min(m.cap, 0.98 * b.bearing_number_at(self.max_speed_rpm))
+        config = dataclasses.replace(self.decision, rel_sd=m.rel_sd)
+        op = choose_operating_point(table, m.post, m.lam_ref, lam_cmd, cap, config)
+        m.d_cmd, m.setpoint = op.damping, b.speed_rpm_at(op.bearing_number)
+        m.dirty = False
+        self.last = op
 
-    def _init_plant(self, m: dict, obs: np.ndarray, rpm: float) -> None:
+    def _init_plant(self, m: MarginSearchMemory, obs: np.ndarray, rpm: float) -> None:
         if self.randomized:
-            est = identify_bearing(self.identifier, m["obs"])
-            m["estimate"] = est
-            m["table"], m["bearing"], m["model"] = self._table_for(est)
-            m["rate"] = self.spec.actions.rpm_per_step(m["bearing"], self.control_interval)
+            est = identify_bearing(self.identifier, m.obs)
+            m.estimate = est
+            m.table, m.bearing, m.model = self._table_for(est)
+            m.rate = self.spec.actions.rpm_per_step(m.bearing, self.control_interval)
         else:
-            m["table"] = self._nominal_table()
-            m["model"] = self._tables["nominal_model"]
-        m["lam_ref"] = self._lam(m, rpm)
+            m.table = self._nominal_table()
+            m.model = self._tables["nominal_model"]
+        m.lam_ref = self._lam(m, rpm)
         if self.reference_bearing_number is not None and not self.randomized:
-            m["lam_ref"] = float(self.reference_bearing_number)
-        m["mode"] = "probe" if (self.unbalance_dampings and len(m["post"].gains) > 1) else "run"
-        if m["mode"] == "probe":
+            m.lam_ref = float(self.reference_bearing_number)
+        m.mode = Mode.PROBE if (self.unbalance_dampings and len(m.post.gains) > 1) else Mode.RUN
+        if m.mode is Mode.PROBE:
             # the probe costs ~48 steps at the start speed: skip it when the prior alone already puts the
             # command below the boundary for every plausible gain (value ~1: full progress, no risk)
             self._decide(m, obs)
-            if self.last["value"] >= self.skip_probe_value:
-                m["mode"] = "run"
+            if self.last.value >= self.skip_probe_value:
+                m.mode = Mode.RUN
             else:
                 # at the start speed: tried at the highest speed where every plausible plant decays at
                 # >= 0.012/tau (Lambda 0.51 on RunUp-v1, seeds 0-7), the gain came out less accurate
                 # (log errors up to 0.57 against 0.44) for ~1 point of speed reward
-                m["probe_rpm"] = rpm
+                m.probe_rpm = rpm
 
     # -- the unbalance probe at the start speed -------------------------------------------------
     def _probe_plan(self, obs: np.ndarray) -> list[float]:
@@ -751,54 +931,54 @@ class MarginSearchAgent(_V1Rule):
         ds = sorted(self.unbalance_dampings)
         return ds if abs(math.log(ds[0] / ind)) <= abs(math.log(ds[-1] / ind)) else ds[::-1]
 
-    def _probe_step(self, obs: np.ndarray, rpm: float, m: dict) -> tuple[float, float] | None:
+    def _probe_step(self, obs: np.ndarray, rpm: float, m: MarginSearchMemory) -> tuple[float, float] | None:
         """One step of the probe: ``(speed action, damping)``, or None when it is done (posterior
         updated).  First the run-up to the probe speed (at the first probe damping), then the segments."""
-        if "probe" not in m:
-            m["probe"] = {"plan": self._probe_plan(obs), "j": 0, "settle": 0, "n": 0, "quiet": 0}
-            m["unb"] = UnbalanceProbe(self.n_probes)
-            m["meter"].floor = m["meter"].floor or self.spec.observations.envelope(obs)
-        pr = m["probe"]
-        d = pr["plan"][pr["j"]]
-        target = m.get("probe_rpm", rpm)
+        if m.probe is None:
+            m.probe = ProbeState(plan=self._probe_plan(obs))
+            m.unb = UnbalanceProbe(self.n_probes)
+            m.meter.floor = m.meter.floor or self.spec.observations.envelope(obs)
+        pr = m.probe
+        d = pr.plan[pr.j]
+        target = m.probe_rpm if m.probe_rpm is not None else rpm
         if abs(rpm - target) > 1e-6 * target:  # not there yet: no sample (the speed must be constant)
-            pr["settle"] = 0
+            pr.settle = 0
             if self.randomized and rpm > 1.01 * self.start_speed_rpm:
-                m["ramp_obs"].append((rpm, np.asarray(obs, dtype=float)))
+                m.ramp_obs.append((rpm, np.asarray(obs, dtype=float)))
             return self.track(m, rpm, target), d
         ind = self.spec.actions.damping_from_action(float(obs[self.spec.observations.damping]))
         env_ = self.spec.observations.envelope(obs)
-        floor = m["meter"].floor or env_
-        pr["quiet"] = 0 if env_ > floor + 0.04 else pr["quiet"] + 1  # a shock spoils the 1x fit
+        floor = m.meter.floor or env_
+        pr.quiet = 0 if env_ > floor + 0.04 else pr.quiet + 1  # a shock spoils the 1x fit
         arrived = abs(math.log(max(ind, 1e-9) / d)) < 0.03
-        if not arrived or pr["quiet"] < 3:
-            pr["settle"] = 0
+        if not arrived or pr.quiet < 3:
+            pr.settle = 0
         else:
-            pr["settle"] += 1
-        if pr["settle"] > 2:  # the free transient of the damping change has decayed (>= 2 steps)
-            m["unb"].add(d, m["k"], obs)
-            pr["n"] += 1
-            if pr["n"] >= self.unbalance_samples:
-                pr["j"], pr["n"], pr["settle"] = pr["j"] + 1, 0, 0
-                if pr["j"] >= len(pr["plan"]):
+            pr.settle += 1
+        if pr.settle > 2:  # the free transient of the damping change has decayed (>= 2 steps)
+            m.unb.add(d, m.k, obs)
+            pr.n += 1
+            if pr.n >= self.unbalance_samples:
+                pr.j, pr.n, pr.settle = pr.j + 1, 0, 0
+                if pr.j >= len(pr.plan):
                     self._finish_probe(m)
                     return None
-                d = pr["plan"][pr["j"]]
-        if m["k"] > 110:  # never spend more than ~half the episode on it
+                d = pr.plan[pr.j]
+        if m.k > 110:  # never spend more than ~half the episode on it
             self._finish_probe(m)
             return None
         return self.track(m, rpm, target), d
 
-    def _finish_probe(self, m: dict) -> None:
-        unb: UnbalanceProbe = m["unb"]
-        segs = [sg for sg in unb.segments if len(sg["k"]) >= 5]
+    def _finish_probe(self, m: MarginSearchMemory) -> None:
+        unb = m.unb
+        segs = [sg for sg in unb.segments if len(sg.k) >= 5]
         unb.segments = segs
         if len(segs) >= 2:
-            b, model = m["bearing"], m["model"]
-            lam = b.bearing_number_at(m.get("probe_rpm", self.start_speed_rpm))
+            b, model = m.bearing, m.model
+            lam = b.bearing_number_at(m.probe_rpm if m.probe_rpm is not None else self.start_speed_rpm)
             s0 = find_equilibrium(model, lam)
-            post: GainPosterior = m["post"]
-            ds = np.array([sg["d"] for sg in segs])
+            post = m.post
+            ds = np.array([sg.d for sg in segs])
             pos_scale = b.clearance_m / self.nominal.clearance_m
             vel_scale = pos_scale * self.nominal.time_scale_s / b.time_scale_s
             vec = unbalance_vectors(
@@ -817,161 +997,208 @@ class MarginSearchAgent(_V1Rule):
             # (rms) with tails of 2.4-2.6 sd at the smallest unbalances; x0.6 widens it to ~1 sd
             post.log_w = post.log_w + self.unbalance_temper * ll
             post.measurements.append(("unbalance", lam, tuple(ds), phi))
-            m["probe_ll"] = ll
-        m["mode"], m["dirty"] = "run", True
+            m.probe_ll = ll
+        m.mode, m.dirty = Mode.RUN, True
 
-    def _collect_and_refine(self, m: dict, obs: np.ndarray, rpm: float, envelope: float) -> None:
+    def _collect_and_refine(
+        self, m: MarginSearchMemory, obs: np.ndarray, rpm: float, envelope: float
+    ) -> None:
         """Randomised task: keep quiet observations along the run-up; once enough of the ramp is seen,
         re-identify the bearing with the sensor biases eliminated (:func:`refine_bearing`), rebuild the
         plant's table and decide again."""
         start = self.start_speed_rpm
-        quiet = m["meter"].event is None and envelope < (m["meter"].floor or envelope) + 0.04
-        if m["mode"] == "run" and quiet and rpm > 1.01 * start:
-            m["ramp_obs"].append((rpm, np.asarray(obs, dtype=float)))
-        n = len(m["ramp_obs"])
-        near = m["setpoint"] is not None and rpm >= 0.97 * m["setpoint"]
+        quiet = m.meter.event is None and envelope < (m.meter.floor or envelope) + 0.04
+        if m.mode is Mode.RUN and quiet and rpm > 1.01 * start:
+            m.ramp_obs.append((rpm, np.asarray(obs, dtype=float)))
+        n = len(m.ramp_obs)
+        near = m.setpoint is not None and rpm >= 0.97 * m.setpoint
         if n >= self.refine_points or (near and n >= self.refine_points // 2):
-            pts = [(start, np.mean(m["obs"], axis=0), len(m["obs"]))]
-            if m["start_obs"]:  # the probe's observations at its constant speed
-                pr = m["probe_rpm"]
-                pts.append((pr, np.mean(m["start_obs"], axis=0), len(m["start_obs"])))
+            pts = [(start, np.mean(m.obs, axis=0), len(m.obs))]
+            if m.start_obs:  # the probe's observations at its constant speed
+                pts.append((m.probe_rpm, np.mean(m.start_obs, axis=0), len(m.start_obs)))
             for j in range(0, n, 4):
-                grp = m["ramp_obs"][j : j + 4]
+                grp = m.ramp_obs[j : j + 4]
                 pts.append(
                     (float(np.mean([g[0] for g in grp])), np.mean([g[1] for g in grp], axis=0), len(grp))
                 )
-            est = refine_bearing(self.identifier, pts, m["estimate"])
-            m["estimate_initial"], m["estimate"] = m["estimate"], est
-            m["table"], m["bearing"], m["model"] = self._table_for(est)
-            m["rate"] = self.spec.actions.rpm_per_step(m["bearing"], self.control_interval)
-            m["rel_sd"], m["refined"], m["dirty"] = self.rel_sd_refined, True, True
+            est = refine_bearing(self.identifier, pts, m.estimate)
+            m.estimate_initial, m.estimate = m.estimate, est
+            m.table, m.bearing, m.model = self._table_for(est)
+            m.rate = self.spec.actions.rpm_per_step(m.bearing, self.control_interval)
+            m.rel_sd, m.refined, m.dirty = self.rel_sd_refined, True, True
 
-    def _act(self, obs, rpm, m):
-        if m["mode"] == "identify":
-            m["obs"].append(np.asarray(obs, dtype=float))
-            if len(m["obs"]) < self.n_identify:
-                d0 = self._probe_plan(obs)[0] if self.unbalance_dampings else m["d_cmd"]
-                return [0.0, self.spec.damping_action(d0)]
-            self._init_plant(m, obs, rpm)
-        elif m["mode"] == "init":
-            self._init_plant(m, obs, rpm)
-        if m["mode"] == "probe" and self.randomized and abs(rpm - m.get("probe_rpm", rpm)) <= 1e-6 * rpm:
-            m["start_obs"].append(np.asarray(obs, dtype=float))  # the probe's static observations
-        if m["mode"] == "probe":
-            # the floor follows the envelope (the 1x orbit changes with the damping); shocks are measured
-            for rate, lam_ev, d_ev, _n in m["meter"].update(
-                self.spec.observations.envelope(obs), self._lam(m, rpm), m["d_prev"] or m["d_cmd"]
-            ):
-                m["post"].add_decay(m["table"], lam_ev, d_ev, rate)
-            act = self._probe_step(obs, rpm, m)
-            if act is not None:
-                m["d_prev"] = act[1]
-                return [act[0], self.spec.damping_action(act[1])]
+    # -- one handler per mode -------------------------------------------------------------------
+    def _act(self, obs, rpm, m: MarginSearchMemory):
+        return self._dispatch(obs, rpm, m)
+
+    def _dispatch(self, obs: np.ndarray, rpm: float, m: MarginSearchMemory) -> list[float]:
+        """The action of this step: the handler of the memory's mode."""
+        return getattr(self, self.MODE_HANDLERS[m.mode])(obs, rpm, m)
+
+    def _on_identify(self, obs: np.ndarray, rpm: float, m: MarginSearchMemory) -> list[float]:
+        """Hold the start speed while the identification's observations are collected; then build the
+        plant and act in the mode it chose."""
+        m.obs.append(np.asarray(obs, dtype=float))
+        if len(m.obs) < self.n_identify:
+            d0 = self._probe_plan(obs)[0] if self.unbalance_dampings else m.d_cmd
+            return [0.0, self.spec.damping_action(d0)]
+        self._init_plant(m, obs, rpm)
+        return self._dispatch(obs, rpm, m)
+
+    def _on_init(self, obs: np.ndarray, rpm: float, m: MarginSearchMemory) -> list[float]:
+        """Nominal task: the nominal plant's table, then act in the mode it chose."""
+        self._init_plant(m, obs, rpm)
+        return self._dispatch(obs, rpm, m)
+
+    def _on_probe(self, obs: np.ndarray, rpm: float, m: MarginSearchMemory) -> list[float]:
+        """The unbalance probe; once done, the same step runs (:meth:`_on_run`)."""
+        target = m.probe_rpm if m.probe_rpm is not None else rpm
+        if self.randomized and abs(rpm - target) <= 1e-6 * rpm:
+            m.start_obs.append(np.asarray(obs, dtype=float))  # the probe's static observations
+        # the floor follows the envelope (the 1x orbit changes with the damping); shocks are measured
+        for rate, lam_ev, d_ev, _n in m.meter.update(
+            self.spec.observations.envelope(obs), self._lam(m, rpm), m.d_prev or m.d_cmd
+        ):
+            m.post.add_decay(m.table, lam_ev, d_ev, rate)
+        act = self._probe_step(obs, rpm, m)
+        if act is not None:
+            m.d_prev = act[1]
+            return [act[0], self.spec.damping_action(act[1])]
+        return self._on_run(obs, rpm, m)
+
+    def _on_run(self, obs: np.ndarray, rpm: float, m: MarginSearchMemory) -> list[float]:
+        """At (or on the way to) the operating point; a whirl detected now turns to recovering at once."""
+        self._watch(obs, rpm, m)
+        if m.mode is Mode.RECOVER:
+            return self._recover_action(rpm, m)
+        sp = m.setpoint
+        # in the last hold window the set-point may only come down (the window's mean counts)
+        if self.steps_left(obs, m) <= self.hold_steps and m.frozen_sp is not None:
+            sp = min(sp, m.frozen_sp)
+        else:
+            m.frozen_sp = sp
+        return self._with_damping(m, self.track(m, rpm, sp))
+
+    def _on_recover(self, obs: np.ndarray, rpm: float, m: MarginSearchMemory) -> list[float]:
+        """Backing off below the speed of the whirl until the envelope is calm for 3 steps."""
+        self._watch(obs, rpm, m)
+        return self._recover_action(rpm, m)
+
+    def _recover_action(self, rpm: float, m: MarginSearchMemory) -> list[float]:
+        excess = m.prev_excess
+        m.calm = m.calm + 1 if excess < 0.05 else 0
+        if m.calm >= 3:
+            m.mode = Mode.RUN
+        return self._with_damping(m, self.track(m, rpm, min(m.recover_rpm, m.setpoint)))
+
+    def _with_damping(self, m: MarginSearchMemory, a0: float) -> list[float]:
+        """The step's action: speed ``a0`` and the damping of the decision (or of a shock's switch)."""
+        d = m.probe_d if m.probe_d is not None else m.d_cmd
+        m.d_prev = d
+        return [a0, self.spec.damping_action(d)]
+
+    def _watch(self, obs: np.ndarray, rpm: float, m: MarginSearchMemory) -> None:
+        """What runs on every step at the operating point (run and recover): the refinement of the
+        identification, the decays of shocks into the posterior, the damping switch during a decay, the
+        whirl guard, a new decision where the evidence changed, the optional creep."""
         lam = self._lam(m, rpm)
         env_ = self.spec.observations.envelope(obs)
-        meter: DecayMeter = m["meter"]
-        if not m["refined"]:
+        meter = m.meter
+        if not m.refined:
             self._collect_and_refine(m, obs, rpm, env_)
         # the damping in force over the last step: the previous command (None before the first)
         growing_event = False
-        for rate, lam_ev, d_ev, _n in meter.update(env_, lam, m["d_prev"] or m["d_cmd"]):
-            m["post"].add_decay(m["table"], lam_ev, d_ev, rate)
-            m["dirty"] = True
+        for rate, lam_ev, d_ev, _n in meter.update(env_, lam, m.d_prev or m.d_cmd):
+            m.post.add_decay(m.table, lam_ev, d_ev, rate)
+            m.dirty = True
             # a shock's transient that grew instead of decaying: the plant is unstable here (seen on
             # RunUp-v1 seed 31: +0.27 per step, then touchdown 5 steps later while the guard waited)
             growing_event = growing_event or rate > 0.05
         # two rates from one shock: after ``probe_points`` points at the planned damping, switch it by
         # ``probe_factor`` toward the middle of the range (the sign of the change of the rate tells on
         # which side of the optimum the actual damping lies; one rate cannot)
-        if meter.event is not None and m["mode"] == "run" and len(m["post"].gains) > 1:
-            if meter.points >= self.probe_points and m.get("probe_d") is None:
-                f = self.probe_factor if m["d_cmd"] <= self.nmap.d_opt else 1.0 / self.probe_factor
-                d_sw = m["d_cmd"] * f
-                post: GainPosterior = m["post"]
+        if meter.event is not None and m.mode is Mode.RUN and len(m.post.gains) > 1:
+            if meter.points >= self.probe_points and m.probe_d is None:
+                f = self.probe_factor if m.d_cmd <= self.nmap.d_opt else 1.0 / self.probe_factor
+                d_sw = m.d_cmd * f
+                post = m.post
                 w = post.weights
                 lg = np.log(post.gains)
                 spread = float(np.sqrt(w @ (lg - w @ lg) ** 2))
                 # only where it is informative and safe: near the boundary a switched damping can make
                 # the plant unstable (seen on WhirlRecovery-v1: a x1.6 switch at 0.985 lambda_best whirled)
-                risk = float(w @ (m["table"].growth_rate(lam, post.gains * d_sw) > -0.004))
-                m["probe_d"] = d_sw if (spread > 0.1 and risk < 0.02) else m["d_cmd"]
-        elif meter.event is None and m.get("probe_d") is not None:
-            m["probe_d"] = None
+                risk = float(w @ (m.table.growth_rate(lam, post.gains * d_sw) > -0.004))
+                m.probe_d = d_sw if (spread > 0.1 and risk < 0.02) else m.d_cmd
+        elif meter.event is None and m.probe_d is not None:
+            m.probe_d = None
         # whirl guard: an envelope above the floor that grows in 3 consecutive steps (a shock's transient
         # decays; a steady 1x orbit of another size stays level), or a large one that does not decay
         excess = env_ - (meter.floor or 0.0)
-        prev = m.get("prev_excess", 0.0)
+        prev = m.prev_excess
         # (the envelope's noise is ~0.005 C: three chance rises of 5 % each at 0.06 C are rare)
         grow = (excess > 0.06 and excess > 1.05 * prev) or (excess > 0.5 and excess > 0.97 * prev)
         # a shock's pulse lasts up to 15 ms (two steps): the envelope rises while it acts
-        if meter.event is not None and meter.event["k"] <= 2:
+        if meter.event is not None and meter.event.k <= 2:
             grow = False
-        m["grow"] = m.get("grow", 0) + 1 if grow else 0
-        m["prev_excess"] = excess
-        if m["grow"] >= 3 or growing_event:
-            if m["mode"] != "recover":
-                m["post"].add_instability(m["table"], lam, m["d_cmd"])
-                m["cap"] = min(m["cap"], lam * (1 - self.backoff / 2))
-                m["whirl_count"] += 1
-                m["dirty"] = True
-                m["recover_rpm"] = rpm * (1 - self.backoff)
-                cr = m.get("creep")
-                if cr is not None and cr["onset_rpm"] is None:
+        m.grow = m.grow + 1 if grow else 0
+        m.prev_excess = excess
+        if m.grow >= 3 or growing_event:
+            if m.mode is not Mode.RECOVER:
+                m.post.add_instability(m.table, lam, m.d_cmd)
+                m.cap = min(m.cap, lam * (1 - self.backoff / 2))
+                m.whirl_count += 1
+                m.dirty = True
+                m.recover_rpm = rpm * (1 - self.backoff)
+                cr = m.creep
+                if cr is not None and cr.onset_rpm is None:
                     # the creep found the boundary at this damping: end just below where the whirl began
                     # (the onset lies at or above Lambda_c: the detection lags the crossing)
-                    cr["onset_rpm"] = min(cr["rpm"], rpm)
-                    cr["final_rpm"] = cr["onset_rpm"] * (1 - self.creep_margin)
+                    cr.onset_rpm = min(cr.rpm, rpm)
+                    cr.final_rpm = cr.onset_rpm * (1 - self.creep_margin)
                 elif cr is not None:  # whirled again below the onset: step down once more
-                    cr["final_rpm"] = min(cr["final_rpm"], rpm) * (1 - self.creep_margin)
-            m["mode"], m["calm"] = "recover", 0
-        if m["dirty"]:
+                    cr.final_rpm = min(cr.final_rpm, rpm) * (1 - self.creep_margin)
+            m.mode, m.calm = Mode.RECOVER, 0
+        if m.dirty:
             self._decide(m, obs)
         self._creep(m, obs, rpm)
-        if m["mode"] == "recover":
-            m["calm"] = m["calm"] + 1 if excess < 0.05 else 0
-            if m["calm"] >= 3:
-                m["mode"] = "run"
-            a0 = self.track(m, rpm, min(m["recover_rpm"], m["setpoint"]))
-        else:
-            sp = m["setpoint"]
-            # in the last hold window the set-point may only come down (the window's mean counts)
-            if self.steps_left(obs, m) <= self.hold_steps and m.get("frozen_sp") is not None:
-                sp = min(sp, m["frozen_sp"])
-            else:
-                m["frozen_sp"] = sp
-            a0 = self.track(m, rpm, sp)
-        d = m["probe_d"] if m.get("probe_d") is not None else m["d_cmd"]
-        m["d_prev"] = d
-        return [a0, self.spec.damping_action(d)]
 
-    def _creep(self, m: dict, obs: np.ndarray, rpm: float) -> None:
+    def _creep(self, m: MarginSearchMemory, obs: np.ndarray, rpm: float) -> None:
         """Online search of the boundary at the chosen damping (``creep_rate > 0``): once at the model's
         set-point below an infeasible-looking command with time to spare, raise the set-point by
         ``creep_rate`` per step until the whirl guard fires (onset) or the command is reached; then hold
         ``creep_margin`` below the onset (the damping is frozen for the search).  Without an onset, end
         at the highest speed crept (no whirl seen there)."""
-        if self.creep_rate <= 0 or not m["refined"] or m["setpoint"] is None:
+        if self.creep_rate <= 0 or not m.refined or m.setpoint is None:
             return
         cmd = self.command_rpm(obs, m)
         if cmd is None:
             return
         left = self.steps_left(obs, m)
-        cr = m.get("creep")
+        cr = m.creep
         if cr is None:
-            at_sp = m["mode"] == "run" and abs(rpm - m["setpoint"]) <= 1e-3 * m["setpoint"]
-            if not (at_sp and m["setpoint"] < 0.995 * cmd and left > self.creep_reserve):
+            at_sp = m.mode is Mode.RUN and abs(rpm - m.setpoint) <= 1e-3 * m.setpoint
+            if not (at_sp and m.setpoint < 0.995 * cmd and left > self.creep_reserve):
                 return
-            cr = m["creep"] = {"rpm": m["setpoint"], "d": m["d_cmd"], "onset_rpm": None, "final_rpm": None}
-        m["d_cmd"] = cr["d"]
-        if cr["final_rpm"] is None:
-            if left <= self.creep_reserve // 2 or cr["rpm"] >= cmd:
+            cr = m.creep = CreepState(rpm=m.setpoint, d=m.d_cmd)
+        m.d_cmd = cr.d
+        if cr.final_rpm is None:
+            if left <= self.creep_reserve // 2 or cr.rpm >= cmd:
                 # out of time or at the command without an onset: keep the highest calm speed
-                cr["final_rpm"] = min(cr["rpm"], cmd)
-            elif m["mode"] == "run" and rpm >= cr["rpm"] * (1 - 1e-3):
-                cr["rpm"] = min(cmd, cr["rpm"] * (1 + self.creep_rate))
-            m["setpoint"] = cr["rpm"] if cr["final_rpm"] is None else cr["final_rpm"]
+                cr.final_rpm = min(cr.rpm, cmd)
+            elif m.mode is Mode.RUN and rpm >= cr.rpm * (1 - 1e-3):
+                cr.rpm = min(cmd, cr.rpm * (1 + self.creep_rate))
+            m.setpoint = cr.rpm if cr.final_rpm is None else cr.final_rpm
         else:
-            m["setpoint"] = cr["final_rpm"]
+            m.setpoint = cr.final_rpm
+
+
+@dataclass
+class RecoveryMemory(MarginSearchMemory):
+    """:class:`RecoveryAgent`'s memory: margin_search's, starting in :attr:`Mode.DIP`, plus the damping
+    commanded at the start (whose survival is evidence about ``g``)."""
+
+    mode: Mode = Mode.DIP
+    d_start: float | None = None
 
 
 class RecoveryAgent(MarginSearchAgent):
@@ -995,6 +1222,8 @@ class RecoveryAgent(MarginSearchAgent):
     (A first version of WhirlRecovery-v1 started at actual ``D_W = d_opt`` and showed ``d_opt / g`` as the
     indicated damping, so this rule read ``g`` at reset; the task now starts with ``d_opt`` commanded and
     that leak is gone.)"""
+
+    MODE_HANDLERS: ClassVar[dict[Mode, str]] = {**MarginSearchAgent.MODE_HANDLERS, Mode.DIP: "_on_dip"}
 
     def __init__(
         self,
@@ -1027,56 +1256,65 @@ class RecoveryAgent(MarginSearchAgent):
         self.survival_steps = int(survival_steps)
         self.probe_growth_rate = float(probe_growth_rate)
 
-    def _new_memory(self) -> dict:
-        m = super()._new_memory()
-        m["mode"] = "dip"
-        return m
+    def _new_memory(self) -> RecoveryMemory:
+        return RecoveryMemory(
+            rate=self.spec.rpm_per_step,
+            bearing=self.nominal,
+            post=GainPosterior(self.gain_range),
+            d_cmd=self.nmap.d_opt,
+            rel_sd=self.rel_sd,
+            refined=not self.randomized,
+        )
 
-    def _survived(self, m: dict) -> None:
+    def _survived(self, m: RecoveryMemory) -> None:
         """Alive after the first steps at ``d_start``: the actual damping lay in the survival window."""
-        post: GainPosterior = m["post"]
-        actual = post.gains * m["d_start"]
+        post = m.post
+        actual = post.gains * m.d_start
         lo, hi = self.survival_window
         post.log_w = post.log_w + np.where((actual >= lo) & (actual <= hi), 0.0, math.log(self.survival_odds))
-        post.measurements.append(("survived", m["d_start"]))
-        m["dirty"] = True
+        post.measurements.append(("survived", m.d_start))
+        m.dirty = True
 
-    def probe_bearing_number(self, m: dict, lam_now: float) -> float:
+    def probe_bearing_number(self, m: RecoveryMemory, lam_now: float) -> float:
         """The highest Lambda (not above ``lam_now``) where every plausible plant (posterior weight above
         1e-3 of the largest) decays at ``probe_growth_rate`` at every probe damping."""
-        post: GainPosterior = m["post"]
+        post = m.post
         w = post.weights
         gains = post.gains[w >= 1e-3 * w.max()]
         actual = (gains[:, None] * np.asarray(self.unbalance_dampings)[None, :]).ravel()
-        lam_safe = float(np.min(m["table"].critical(actual, self.probe_growth_rate)))
+        lam_safe = float(np.min(m.table.critical(actual, self.probe_growth_rate)))
         return min(lam_now, lam_safe)
 
-    def _act(self, obs, rpm, m):
-        if m["k"] == 0:
-            m["table"] = self._nominal_table()
-            m["model"] = self._tables["nominal_model"]
+    def _act(self, obs, rpm, m: RecoveryMemory):
+        # every step, whatever the mode: the plan at the first step, the survival evidence after the first
+        if m.k == 0:
+            m.table = self._nominal_table()
+            m.model = self._tables["nominal_model"]
             ref = self.reference_bearing_number
-            m["lam_ref"] = float(ref) if ref is not None else 0.85 * self.nmap.lambda_best
+            m.lam_ref = float(ref) if ref is not None else 0.85 * self.nmap.lambda_best
             self._decide(m, obs)
-            m["d_start"] = m["d_cmd"]
-            m["meter"].floor = 0.04
-        if m["k"] == self.survival_steps and len(m["post"].gains) > 1:
+            m.d_start = m.d_cmd
+            m.meter.floor = 0.04
+        if m.k == self.survival_steps and len(m.post.gains) > 1:
             self._survived(m)
-        if m["mode"] == "dip":
-            env_ = self.spec.observations.envelope(obs)
-            m["d_prev"] = m["d_cmd"]
-            # the reset observation has no orbit yet (its envelope is 0): judge from the first steps on
-            if env_ > self.threshold or m["k"] < 2:
-                return [-1.0, self.spec.damping_action(m["d_cmd"])]
-            m["meter"].floor = 0.03
-            m["meter"]._open(env_)  # the collapsing whirl's tail decays like a shock's transient
-            if self.unbalance_dampings and len(m["post"].gains) > 1:
-                m["mode"] = "probe"
-                lam = self.probe_bearing_number(m, self._lam(m, rpm))
-                m["probe_rpm"] = m["bearing"].speed_rpm_at(lam)
-            else:
-                m["mode"] = "run"
-        return super()._act(obs, rpm, m)
+        return self._dispatch(obs, rpm, m)
+
+    def _on_dip(self, obs: np.ndarray, rpm: float, m: RecoveryMemory) -> list[float]:
+        """Decelerate at the motor limit while the whirl lasts; then probe (or run) in the same step."""
+        env_ = self.spec.observations.envelope(obs)
+        m.d_prev = m.d_cmd
+        # the reset observation has no orbit yet (its envelope is 0): judge from the first steps on
+        if env_ > self.threshold or m.k < 2:
+            return [-1.0, self.spec.damping_action(m.d_cmd)]
+        m.meter.floor = 0.03
+        m.meter.open_event(env_)  # the collapsing whirl's tail decays like a shock's transient
+        if self.unbalance_dampings and len(m.post.gains) > 1:
+            m.mode = Mode.PROBE
+            lam = self.probe_bearing_number(m, self._lam(m, rpm))
+            m.probe_rpm = m.bearing.speed_rpm_at(lam)
+        else:
+            m.mode = Mode.RUN
+        return self._dispatch(obs, rpm, m)
 
 
 def make_rule(name: str, env) -> ScriptedPolicy:

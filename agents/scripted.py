@@ -39,6 +39,7 @@ from gfb_env.envs.units import ActionMap, ObservationLayout
 __all__ = [
     "Policy",
     "ControlSpec",
+    "TrackerMemory",
     "ScheduleAgent",
     "MapInformedAgent",
 ]
@@ -111,6 +112,23 @@ class ControlSpec:
         return self.actions.action_from_damping(d)
 
 
+@dataclass
+class TrackerMemory:
+    """The per-env memory of a scripted agent's speed tracker (subclassed by the rules for their own).
+
+    Attributes:
+        k: control steps taken in this episode.
+        rate: the estimated speed change (rpm) of one control step at action[0] = 1.
+        prev_rpm: the speed of the previous step (None before the first).
+        prev_a0: the previous speed action.
+    """
+
+    k: int = 0
+    rate: float = 0.0
+    prev_rpm: float | None = None
+    prev_a0: float = 0.0
+
+
 class ScriptedPolicy(Policy):
     """Base of the scripted agents: per-env memory, a speed set-point tracker with an online estimate of
     the speed change per control step (the randomised clearance changes the time scale)."""
@@ -120,13 +138,13 @@ class ScriptedPolicy(Policy):
     def __init__(self, name: str, spec: ControlSpec):
         self.name = name
         self.spec = spec
-        self._mem: list[dict] = []
+        self._mem: list[TrackerMemory] = []
 
     def reset(self) -> None:
         self._mem = []
 
-    def _new_memory(self) -> dict:
-        return {"k": 0, "rate": self.spec.rpm_per_step, "prev_rpm": None, "prev_a0": 0.0}
+    def _new_memory(self) -> TrackerMemory:
+        return TrackerMemory(rate=self.spec.rpm_per_step)
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         obs = np.asarray(observation, dtype=np.float64)
@@ -148,24 +166,26 @@ class ScriptedPolicy(Policy):
             rpm = self.spec.observations.speed_rpm(obs2[i])
             self._update_rate(m, rpm)
             a = np.clip(np.asarray(self._act(obs2[i], rpm, m), dtype=np.float64), -1.0, 1.0)
-            m["prev_rpm"], m["prev_a0"], m["k"] = rpm, float(a[0]), m["k"] + 1
+            m.prev_rpm, m.prev_a0, m.k = rpm, float(a[0]), m.k + 1
             acts[i] = a
         return (acts[0] if single else acts), state
 
     @staticmethod
-    def _update_rate(m: dict, rpm: float) -> None:
+    def _update_rate(m: TrackerMemory, rpm: float) -> None:
         """Re-estimate the rpm per control step at action[0] = 1 from the last full-rate step."""
-        if m["prev_rpm"] is not None and abs(m["prev_a0"]) >= 0.5:
-            r = (rpm - m["prev_rpm"]) / m["prev_a0"]
-            if r > 0.2 * m["rate"] and r < 5 * m["rate"]:
-                m["rate"] = r
+        if m.prev_rpm is not None and abs(m.prev_a0) >= 0.5:
+            r = (rpm - m.prev_rpm) / m.prev_a0
+            if r > 0.2 * m.rate and r < 5 * m.rate:
+                m.rate = r
 
     @staticmethod
-    def track(m: dict, rpm: float, setpoint: float, max_rate: float = 1.0) -> float:
+    def track(m: TrackerMemory, rpm: float, setpoint: float, max_rate: float = 1.0) -> float:
         """Action[0] that moves the speed to ``setpoint`` (dead-beat with the estimated step rate)."""
-        return float(np.clip((setpoint - rpm) / m["rate"], -max_rate, max_rate))
+        return float(np.clip((setpoint - rpm) / m.rate, -max_rate, max_rate))
 
-    def _act(self, obs: np.ndarray, rpm: float, m: dict) -> np.ndarray:  # pragma: no cover - abstract
+    def _act(
+        self, obs: np.ndarray, rpm: float, m: TrackerMemory
+    ) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
 
 

@@ -4,9 +4,9 @@ every agent's behaviour bit for bit.
 Every v1 ladder agent (naive, the rules, the oracle and the first run of every committed learned policy) plays
 the first ``STEPS`` control steps of two development seeds of each v1 task it applies to, through the
 agents' public interface only (the ladder builds it; ``reset``, the oracle's reset info, ``predict``), as
-:func:`gfb_agents.evaluate.run_episode` plays it.  Each episode is reduced to digests of its actions, its
-rewards and its end (terminated / truncated / reason).  A manual before/after check (like the env cases of
-``integrator_digests.py``)::
+:func:`gfb_agents.learned.evaluate.run_episode` plays it.  Each episode is reduced to digests of its
+actions, its rewards and its end (terminated / truncated / reason).  A manual before/after check (like
+the env cases of ``integrator_digests.py``)::
 
     python tests/agents_digests.py write /tmp/agents_v1.json
     python tests/agents_digests.py check /tmp/agents_v1.json

@@ -205,7 +205,7 @@ def test_naive_ramp_reads_the_speed_command_where_the_task_has_one():
 
     from gfb_agents import ladder
     from gfb_agents.nominal_map import NominalMap
-    from gfb_agents.scripted import ControlSpec
+    from gfb_agents.policy import ControlSpec
 
     env = gym.make("gfb_env/RunUp-v1")
     nmap = NominalMap.from_env(env)

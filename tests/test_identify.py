@@ -10,10 +10,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gfb_agents.identify import BearingIdentifier, IdentifyingAgent
+from gfb_agents.estimation.identification import BearingIdentifier
 from gfb_agents.learned.evaluate import run_episode
 from gfb_agents.nominal_map import NominalMap
-from gfb_agents.scripted import ControlSpec, MapInformedAgent
+from gfb_agents.policy import ControlSpec
+from gfb_agents.rules.identify_map import IdentifyingAgent
+from gfb_agents.rules.map_informed import MapInformedAgent
 
 RANDOMIZED = "gfb_env/RunUpRandomized-v1"
 

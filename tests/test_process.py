@@ -37,7 +37,7 @@ def test_import_gfb_env_leaves_os_environ_unchanged(tmp_path):
         import gymnasium  # a dependency; it sets PYGAME_HIDE_SUPPORT_PROMPT itself, not our business
         before = dict(os.environ)
         import gfb_env, gfb_env.envs, gfb_env.analysis
-        import gfb_agents.learned.evaluate, gfb_agents.scripted, gfb_agents.learned.train
+        import gfb_agents.learned.evaluate, gfb_agents.policy, gfb_agents.learned.train
         after = dict(os.environ)
         print(json.dumps({k: [before.get(k), after.get(k)] for k in set(before) | set(after)
                           if before.get(k) != after.get(k)}))

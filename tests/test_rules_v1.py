@@ -1,6 +1,7 @@
-"""Tests of the v1 rules (agents/rules_v1.py, issue 11): the plant's stability table against the
-documented task constants, the posterior over the hidden damping gain, the noise-aware identification,
-and short episodes of each rule (finite actions in the action space).  Training seeds only (< 10000)."""
+"""Tests of the v1 rules (agents/rules/, agents/estimation/, issue 11): the plant's stability table
+against the documented task constants, the posterior over the hidden damping gain, the noise-aware
+identification, and short episodes of each rule (finite actions in the action space).  Training seeds
+only (< 10000)."""
 
 from __future__ import annotations
 
@@ -9,20 +10,15 @@ import numpy as np
 import pytest
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
-from gfb_agents.identify import BearingIdentifier
-from gfb_agents.rules_v1 import (
-    RULE_NAMES,
-    DecayMeter,
-    GainPosterior,
-    OperatingPointConfig,
-    StabilityTable,
-    choose_operating_point,
-    identify_bearing,
-    make_rule,
-    refine_bearing,
-)
+from gfb_agents.estimation.decay import DecayMeter
+from gfb_agents.estimation.gain import GainPosterior
+from gfb_agents.estimation.identification import BearingIdentifier, identify_bearing, refine_bearing
+from gfb_agents.estimation.stability import StabilityTable
+from gfb_agents.ladder import build as make_rule
+from gfb_agents.rules.operating_point import OperatingPointConfig, choose_operating_point
 from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.envs.base import viscoelastic_model
+from gfb_experiments.rules_check import RULE_NAMES
 
 
 @pytest.fixture(scope="module")
@@ -157,7 +153,7 @@ def test_recovery_starts_from_the_prior_over_the_gain():
 def test_recovery_survival_weighs_down_the_gains_outside_the_window():
     """Alive after the first steps: plants whose actual damping g d_start lies outside the survival
     window (they touch down within two steps on the training seeds) lose a factor survival_odds."""
-    from gfb_agents.rules_v1 import RecoveryAgent
+    from gfb_agents.rules.recovery import RecoveryAgent
 
     env = gym.make("gfb_env/WhirlRecovery-v1")
     pol = RecoveryAgent(env.unwrapped)
@@ -174,7 +170,7 @@ def test_recovery_survival_weighs_down_the_gains_outside_the_window():
 
 
 def test_recovery_probe_speed_keeps_every_plausible_plant_stable():
-    from gfb_agents.rules_v1 import RecoveryAgent
+    from gfb_agents.rules.recovery import RecoveryAgent
 
     model = viscoelastic_model("31x7", NOMINAL_BEARING)
     table = StabilityTable.compute(model, 0.50, 0.70, n_lambda=9, damping_range=(0.1, 10.0), n_damping=11)
@@ -238,13 +234,13 @@ def test_make_rule_names():
     env = gym.make("gfb_env/RunUp-v1")
     for name in RULE_NAMES:
         assert make_rule(name, env).name == name
-    with pytest.raises(ValueError, match="unknown rule"):
+    with pytest.raises(LookupError, match="no agent 'nope' in the ladder"):
         make_rule("nope", env)
     env.close()
 
 
 def test_cli_refuses_test_seeds_and_missing_arguments(capsys):
-    from gfb_agents.rules_v1 import main
+    from gfb_experiments.rules_check import main
 
     assert main(["--env", "gfb_env/RunUp-v1", "--rule", "naive", "--seeds", "10000", "10002"]) == 2
     assert "training/validation seeds only" in capsys.readouterr().out
@@ -255,7 +251,7 @@ def test_creep_raises_the_set_point_until_the_time_runs_short():
     """The optional boundary creep (off by default): from the model's set-point below the command it
     raises the set-point by creep_rate per step at a frozen damping, holds creep_margin below a whirl
     onset, and keeps the highest calm speed when the time runs short."""
-    from gfb_agents.rules_v1 import MarginSearchAgent, Mode
+    from gfb_agents.rules.margin_search import MarginSearchAgent, Mode
 
     env = gym.make("gfb_env/RunUp-v1")
     u = env.unwrapped

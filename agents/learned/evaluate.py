@@ -1,7 +1,7 @@
 """Evaluate scripted and learned policies alike on gfb_env tasks.
 
 * :class:`LearnedPolicy` wraps a committed SB3 model (``model.zip``) and its VecNormalize statistics
-  (``vecnormalize.pkl``) behind the :class:`~gfb_agents.scripted.Policy` interface: ``predict`` normalises the
+  (``vecnormalize.pkl``) behind the :class:`~gfb_agents.policy.Policy` interface: ``predict`` normalises the
   raw observation with the saved statistics and calls the model.
 * :func:`run_episode` plays one seeded episode and returns an :class:`EpisodeResult` (return, success,
   time to target, final speed, max whirl amplitude, touchdown, the (Lambda, D_W) path).
@@ -27,7 +27,7 @@ import gymnasium as gym
 import numpy as np
 
 from gfb_agents import POLICIES_DIR
-from gfb_agents.scripted import Policy
+from gfb_agents.policy import Policy
 
 __all__ = [
     "LearnedPolicy",
@@ -44,7 +44,7 @@ __all__ = [
 ]
 
 
-#: algorithms a learned policy may come from (``gfb_agents.train --algo``)
+#: algorithms a learned policy may come from (``gfb_agents.learned.train --algo``)
 LEARNED_ALGOS = ("ppo", "sac", "recurrentppo")
 
 
@@ -70,7 +70,7 @@ def _find_meta(*dirs: Path) -> dict:
 
 
 class LearnedPolicy(Policy):
-    """An SB3 model with its observation normalisation (the files ``gfb_agents.train`` writes).
+    """An SB3 model with its observation normalisation (the files ``gfb_agents.learned.train`` writes).
 
     Args:
         path: a directory with ``model.zip`` (+ ``vecnormalize.pkl``, + ``run.json`` naming the algo and
@@ -263,8 +263,8 @@ def run_episode(
     """Play one episode of ``env`` (reset with ``seed``) with ``policy`` (deterministic).
 
     A policy with an ``observe_reset_info(info)`` method (an oracle:
-    :class:`~gfb_agents.oracle.CommandedOracle`) is handed the reset ``info`` before its first action;
-    every other policy sees only observations.
+    :class:`~gfb_agents.oracles.commanded.CommandedOracle`) is handed the reset ``info`` before its first
+    action; every other policy sees only observations.
 
     ``time_to_target_s`` is the rotor time at which the speed first came within the task's tolerance of
     its target (RunUp tasks) or, for tasks without a speed target, the time of success; NaN if never.

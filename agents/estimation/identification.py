@@ -8,35 +8,43 @@ depend on the three parameters smoothly, so an engineer with this package's mode
 by least squares: :class:`BearingIdentifier` (a coarse 3 x 3 x 3 grid, then
 ``scipy.optimize.least_squares`` within the env's documented ranges, restarted from the next grid points
 while the residual stays visible; ~60 equilibrium solves of ~5 ms on average).
-:class:`IdentifyingAgent` then reads the env's published table (``env.table``,
+:class:`~gfb_agents.rules.identify_map.IdentifyingAgent`
+then reads the env's published table (``env.table``,
 :class:`~gfb_env.envs.run_up_randomized.BestStableSpeedTable`: ``lambda_best`` and ``d_opt`` of a bearing)
 at the estimate from the first observation and flies the map-informed schedule (damping ``d_opt``, ramp at
 the motor limit, hold at ``target_fraction * lambda_best``, capped as the env caps it) on the estimated
 bearing; capped at the task's command it is the v1 rule ``identify_map_v1``
-(:func:`gfb_agents.rules_v1.make_rule`).
+(:func:`gfb_agents.ladder.build`).
 
-What :class:`IdentifyingAgent` may read, as any user of the env: the observation and the env's documented
+What :class:`~gfb_agents.rules.identify_map.IdentifyingAgent` may read, as any user of the env:
+ the observation and the env's documented
 configuration (nominal bearing, grid, number of probes, start speed, parameter ranges, the published
 table, action map, control interval, speed range) -- never the drawn parameters, the episode or the
 simulator state (``env.unwrapped.episode``, ``_integ``).  It copies what it needs when it is built and
 keeps no reference to the env.  On tasks without a drawn bearing it is the map-informed rule
-(:class:`~gfb_agents.scripted.MapInformedAgent`).
+(:class:`~gfb_agents.rules.map_informed.MapInformedAgent`).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from gfb_agents.nominal_map import NominalMap
-from gfb_agents.scripted import ControlSpec, MapInformedAgent, ScriptedPolicy, TrackerMemory
 from gfb_env.envs.base import viscoelastic_model
 from gfb_env.envs.units import N_ROTOR_OBS, OBS_ETA, OBS_XI
 from gfb_env.equilibrium import EquilibriumError, find_equilibrium
 
-__all__ = ["BearingEstimate", "BearingIdentifier", "IdentifyingAgent"]
+__all__ = [
+    "BearingEstimate",
+    "BearingIdentifier",
+    "POSITION_SD",
+    "PRESSURE_SD",
+    "identify_bearing",
+    "refine_bearing",
+]
 
 
 @dataclass(frozen=True)
@@ -155,69 +163,89 @@ class BearingIdentifier:
         return BearingEstimate(float(p[0]), float(p[1]), float(p[2]), rms, self.solves)
 
 
-@dataclass
-class IdentifyingMemory(TrackerMemory):
-    """:class:`IdentifyingAgent`'s memory: the schedule of this episode and the estimate it rests on."""
-
-    setpoint: float = 0.0
-    damping: float = 1.0
-    estimate: BearingEstimate | None = None
+#: sensor errors in observation units (docs/machine.md, the MACHINE_V1 defaults): per-episode bias
+#: (probes 1 um, taps 0.9 kPa) and per-observation noise (probes 0.3 um, taps 0.35 kPa), plus the 1x
+#: unbalance orbit sampled at a random phase (up to 0.024 C)
+POSITION_SD = (1.0 / 50.0, math.hypot(0.3 / 50.0, 0.015))
+PRESSURE_SD = (0.9e3 / 101325.0, 0.35e3 / 101325.0)
 
 
-class IdentifyingAgent(ScriptedPolicy):
-    """Identify the drawn bearing from the first observation, then fly the
-    map-informed schedule for it (the env's published table at the estimate).
+def identify_bearing(
+    identifier: BearingIdentifier, observations: list[np.ndarray], coarse: int = 3, max_starts: int = 4
+) -> BearingEstimate:
+    """Noise-aware identification of ``(C, f_K, F_L)`` from observations at the start speed.
 
-    Reads only the observation and the env's documented configuration and table (module docstring);
-    it keeps no reference to the env.  On tasks without a drawn bearing it is the map-informed rule.
-    """
+    The observations are averaged (the noise and the 1x unbalance orbit average out; the per-episode
+    probe and tap biases do not), and the residual of each fitted entry is weighted by the standard
+    deviation of what is left (bias, and noise over the number of observations), so the pressure taps
+    (bias 0.009 p0) count more than the probes (bias 0.02 C).  Same local fits as
+    :meth:`BearingIdentifier.fit`."""
+    n = len(observations)
+    y = identifier.measured(np.mean(np.asarray(observations, dtype=float), axis=0))
+    sd_pos = math.hypot(POSITION_SD[0], POSITION_SD[1] / math.sqrt(n))
+    sd_p = math.hypot(PRESSURE_SD[0], PRESSURE_SD[1] / math.sqrt(n))
+    wts = np.r_[np.full(2, 1.0 / sd_pos), np.full(len(y) - 2, 1.0 / sd_p)]
+    # stop when chi^2 per entry is near 1 (rms below sqrt(1.5)): as good as the sensors allow
+    return identifier.fit_measured(
+        y, wts, coarse, max_starts, math.sqrt(1.5), diff_step=1e-3, xtol=1e-8, ftol=1e-10, max_nfev=40
+    )
 
-    def __init__(
-        self, env, spec: ControlSpec | None = None, nmap: NominalMap | None = None, name: str = "identify_map"
-    ):
-        u = getattr(env, "unwrapped", env)
-        nmap = nmap or NominalMap.from_env(u)
-        super().__init__(name, spec or ControlSpec.from_env(u, nmap))
-        # the nominal schedule, the fallback and the whole rule on nominal tasks: map_informed's own
-        nominal = MapInformedAgent(self.spec, nmap)
-        self.nominal_damping, self.nominal_setpoint_rpm = nominal.damping, nominal.setpoint_rpm
-        self.randomized = all(
-            hasattr(u, k) for k in ("table", "clearance_range_m", "stiffness_factor_range", "load_range_n")
-        )
-        self.identifier = BearingIdentifier(u) if self.randomized else None
-        self.table = u.table if self.randomized else None  # the published BestStableSpeedTable
-        self.target_fraction = float(getattr(u, "target_fraction", 0.95))
-        self.max_speed_rpm = float(u.speed_range_rpm[1])
-        self.control_interval = float(u.control_interval)
-        self.nominal = u.nominal_bearing
-        self.last_estimate: BearingEstimate | None = None
 
-    def _new_memory(self) -> IdentifyingMemory:
-        return IdentifyingMemory(
-            rate=self.spec.rpm_per_step, setpoint=self.nominal_setpoint_rpm, damping=self.nominal_damping
-        )
+def refine_bearing(
+    identifier: BearingIdentifier,
+    points: list[tuple[float, np.ndarray, int]],
+    start: BearingEstimate,
+    max_nfev: int = 30,
+) -> BearingEstimate:
+    """Re-identify ``(C, f_K, F_L)`` from averaged observations at several speeds, the sensor biases
+    eliminated.
 
-    def _estimate(self, obs: np.ndarray, m: IdentifyingMemory) -> BearingEstimate | None:
-        """The bearing of this episode (None: the nominal schedule)."""
-        return self.identifier.fit(obs) if self.identifier is not None else None
+    ``points``: ``(speed rpm, mean observation, number averaged)``, e.g. the start-speed average and
+    quasi-static observations along the run-up (the equilibrium moves by ~0.3 C and ~0.3 p0 between
+    Lambda = 0.45 and 0.65; a ramp at the motor limit lags it by ~1e-4 C).  The per-episode probe and tap
+    biases are the same at every speed: per channel they are estimated (a Gaussian prior with the
+    documented spread) and removed, so the fit rests on how the equilibrium *changes* with speed as well
+    as on its absolute value.  Local least squares from ``start``."""
+    nb = identifier.nominal
+    y = np.array([identifier.measured(o) for _, o, _ in points])  # (n_points, n_entries)
+    cnt = np.array([c for _, _, c in points], dtype=float)
+    ne = y.shape[1]
+    b_sd = np.r_[np.full(2, POSITION_SD[0]), np.full(ne - 2, PRESSURE_SD[0])]
+    n_sd = np.r_[np.full(2, POSITION_SD[1]), np.full(ne - 2, PRESSURE_SD[1])]
+    noise = (
+        n_sd[None, :] / np.sqrt(cnt)[:, None] + np.r_[np.full(2, 0.002), np.full(ne - 2, 0.001)]
+    )  # + model
+    cache: dict = {"guesses": [None] * len(points)}
 
-    def schedule_for(self, est: BearingEstimate) -> tuple[float, float, float]:
-        """``(hold speed rpm, damping, rpm per control step)`` of the map-informed schedule on ``est``:
-        the published table's ``target_fraction * lambda_best`` (capped at 98 % of the top speed, as the
-        env caps its target) and ``d_opt``."""
-        b = self.nominal.replace(clearance_m=est.clearance_m, external_load_per_bearing_n=est.load_n)
-        row = self.table(est.clearance_m, est.stiffness_factor, est.load_n)
-        lam = min(self.target_fraction * row["lambda_best"], 0.98 * b.bearing_number_at(self.max_speed_rpm))
-        return (
-            b.speed_rpm_at(lam),
-            row["d_opt"],
-            self.spec.actions.rpm_per_step(b, self.control_interval),
-        )
+    def predictions(x: np.ndarray) -> np.ndarray:
+        c, fk, fl = identifier._param(x)
+        b = nb.replace(clearance_m=c, external_load_per_bearing_n=fl)
+        model = viscoelastic_model(identifier.grid, b, foil_stiffness=fk * b.foil_stiffness)
+        L = model.layout
+        out = np.empty_like(y)
+        scale = c / nb.clearance_m
+        guess = None
+        for i, (rpm, _, _) in enumerate(points):
+            g0 = cache["guesses"][i] if cache["guesses"][i] is not None else guess
+            s = find_equilibrium(model, b.bearing_number_at(rpm), guess=g0)
+            cache["guesses"][i] = guess = s
+            xi, eta = L.rotor(s)[:2]
+            out[i] = np.r_[xi * scale, eta * scale, s[L.midplane_probe_indices(identifier.n_probes)]]
+        return out
 
-    def _act(self, obs, rpm, m: IdentifyingMemory):
-        if m.k == 0:
-            est = self._estimate(obs, m)
-            if est is not None:
-                m.setpoint, m.damping, m.rate = self.schedule_for(est)
-            m.estimate = self.last_estimate = est
-        return [self.track(m, rpm, m.setpoint), self.spec.damping_action(m.damping)]
+    def residual(x: np.ndarray) -> np.ndarray:
+        try:
+            r = predictions(x) - y
+        except EquilibriumError:
+            return np.full(y.size + ne, 1e3)
+        w = 1.0 / noise**2
+        # the bias of each channel: the posterior mean given the residuals and the prior spread
+        bias = (w * r).sum(axis=0) / (w.sum(axis=0) + 1.0 / b_sd**2)
+        return np.r_[((r - bias) / noise).ravel(), bias / b_sd]
+
+    x0 = identifier._unit(np.array([start.clearance_m, start.stiffness_factor, start.load_n]))
+    sol = least_squares(
+        residual, x0, bounds=(0.0, 1.0), diff_step=1e-3, xtol=1e-8, ftol=1e-10, max_nfev=max_nfev
+    )
+    p = identifier._param(sol.x)
+    return BearingEstimate(float(p[0]), float(p[1]), float(p[2]), float(np.sqrt(np.mean(sol.fun**2))))

@@ -1,33 +1,33 @@
-"""Scripted baselines for the gfb_env tasks, behind one small SB3-like policy interface.
+"""The one policy interface of every agent (naive, rules, oracles, learned), in SB3's ``predict`` shape.
 
-Every agent (scripted here, learned in :mod:`gfb_agents.evaluate`) implements::
+Every agent implements::
 
-    policy.reset()                                           # forget everything (a new episode)
+    policy.reset()                                           # forget every env's memory (a new episode)
     action, state = policy.predict(obs, state=None, episode_start=None, deterministic=True)
 
 ``obs`` is the env's documented observation (one of shape ``(n_obs,)`` or a batch ``(n_envs, n_obs)``);
-``episode_start`` (a bool or an array of them, as SB3 passes it) resets the memory of the matching env.
-Scripted agents read only the documented observation (indices below), the env's documented
-configuration (:class:`ControlSpec`: action mapping, motor limit, control interval, nominal task
-target) and the nominal map (:class:`~gfb_agents.nominal_map.NominalMap`); never the drawn parameters nor
-the simulator state.
+``episode_start`` (a bool or an array of them, as SB3 passes it) resets the memory of the matching env;
+``state`` is a recurrent policy's hidden state (returned, passed back by the caller), None otherwise.  An
+oracle (:class:`PrivilegedPolicy`) is also handed the reset ``info`` of each episode
+(:meth:`PrivilegedPolicy.observe_reset_info`): the one privileged channel; every other policy sees only
+observations.
 
-The observation and action units have one owner, :mod:`gfb_env.envs.units` (``env.observation_layout``
-and ``env.actions``); the agents decode observations and encode actions only through it.
+Scripted agents (:class:`ScriptedPolicy`) read only the documented observation, the env's documented
+configuration (:class:`ControlSpec`: action mapping, motor limit, control interval, nominal task target)
+and the nominal map (:class:`~gfb_agents.nominal_map.NominalMap`); never the drawn parameters nor the
+simulator state.  The observation and action units have one owner, :mod:`gfb_env.envs.units`
+(``env.observation_layout`` and ``env.actions``); the agents decode observations and encode actions only
+through it.
 
-Agents:
-
-* :class:`ScheduleAgent`: the paper's schedule -- a linear speed ramp (half the motor limit) at a
-  constant foil damping to a set-point, then hold (``ScheduleAgent.from_schedule``: the run-up that
-  ``gfb schedule`` designed).
-* :class:`MapInformedAgent`: damping at the map's ``argmax Lambda_c``, ramp at the motor limit, hold at
-  ``(1 - margin) Lambda_c(d_opt)`` (``below_fold=True``: below the fold of cycles instead); the v1 rule
-  ``map_informed_v1`` caps it at the task's command (:mod:`gfb_agents.rules_v1`).
+The agents themselves: :mod:`gfb_agents.rules` (naive ramp, schedules, the v1 rules),
+:mod:`gfb_agents.oracles`, :mod:`gfb_agents.learned`; the benchmark's ladder builds them
+(:mod:`gfb_agents.ladder`, the one factory).
 """
 
 from __future__ import annotations
 
-import math
+import abc
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -36,24 +36,24 @@ import numpy as np
 from gfb_agents.nominal_map import NominalMap
 from gfb_env.envs.units import ActionMap, ObservationLayout
 
-__all__ = [
-    "Policy",
-    "ControlSpec",
-    "TrackerMemory",
-    "ScheduleAgent",
-    "MapInformedAgent",
-]
+__all__ = ["Policy", "PrivilegedPolicy", "ControlSpec", "TrackerMemory", "ScriptedPolicy"]
 
 
-class Policy:
-    """SB3-like policy interface shared by scripted and learned agents."""
+class Policy(abc.ABC):
+    """The policy interface shared by every agent (module docstring).
+
+    Attributes:
+        name: the agent's name (the benchmark table's ``agent`` column; the ladder sets it).
+        kind: ``"scripted"`` (naive and rules), ``"oracle"`` or ``"learned"``.
+    """
 
     name: str = "policy"
     kind: str = "scripted"
 
-    def reset(self) -> None:
-        """Forget the episode memory of every env."""
+    def reset(self) -> None:  # noqa: B027 - a policy without memory needs no reset
+        """Forget the episode memory of every env (called before each ``env.reset``)."""
 
+    @abc.abstractmethod
     def predict(
         self,
         observation: np.ndarray,
@@ -64,10 +64,22 @@ class Policy:
         """Action(s) for ``observation`` (shape ``(n_obs,)`` or ``(n_envs, n_obs)``).
 
         Returns ``(action, state)`` with ``action`` of shape ``(2,)`` or ``(n_envs, 2)`` in ``[-1, 1]``."""
-        raise NotImplementedError
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.name!r})"
+
+
+class PrivilegedPolicy(Policy):
+    """A policy that is handed each episode's reset ``info`` (the hidden draw): the oracles, and only they.
+
+    The evaluation (:func:`gfb_agents.learned.evaluate.run_episode`) calls ``reset()`` before
+    ``env.reset`` and :meth:`observe_reset_info` after it, before the first ``predict``."""
+
+    kind = "oracle"
+
+    @abc.abstractmethod
+    def observe_reset_info(self, info: Mapping[str, Any]) -> None:
+        """Take the episode's reset ``info`` (what makes this policy an oracle)."""
 
 
 @dataclass(frozen=True)
@@ -187,61 +199,3 @@ class ScriptedPolicy(Policy):
         self, obs: np.ndarray, rpm: float, m: TrackerMemory
     ) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
-
-
-class ScheduleAgent(ScriptedPolicy):
-    """The paper's schedule: a linear ramp at ``ramp`` of the motor limit to ``setpoint_rpm`` (default the
-    nominal task target) at constant damping ``damping``, then hold."""
-
-    def __init__(
-        self,
-        spec: ControlSpec,
-        damping: float,
-        ramp: float = 0.5,
-        setpoint_rpm: float | None = None,
-        name: str | None = None,
-    ):
-        super().__init__(name or f"paper_ramp_D{damping:g}", spec)
-        if not (0 < ramp <= 1):
-            raise ValueError(f"ramp must lie in (0, 1], got {ramp!r}")
-        self.damping, self.ramp = float(damping), float(ramp)
-        self.setpoint_rpm = float(setpoint_rpm if setpoint_rpm is not None else spec.target_rpm)
-
-    @classmethod
-    def from_schedule(cls, spec: ControlSpec, schedule, name: str = "designed_schedule") -> ScheduleAgent:
-        """The run-up designed by ``gfb schedule`` (:class:`gfb_env.analysis.schedule.RunUpSchedule`):
-        its damping, its acceleration (as a fraction of the env's motor limit, at most 1) and its end
-        speed."""
-        b = schedule.model.bearing
-        accel = b.rate_rpm_per_s(schedule.rate)
-        ramp = min(1.0, accel / spec.actions.max_acceleration_rpm_per_s)
-        return cls(spec, schedule.foil_damping, ramp, b.speed_rpm_at(schedule.end_bearing_number), name)
-
-    def _act(self, obs, rpm, m):
-        return [self.track(m, rpm, self.setpoint_rpm, self.ramp), self.spec.damping_action(self.damping)]
-
-
-class MapInformedAgent(ScriptedPolicy):
-    """Damping at the map's optimum (``argmax Lambda_c``), ramp at the motor limit, hold at
-    ``(1 - margin) Lambda_c(d_opt)``; with ``below_fold=True`` hold at ``(1 - margin) Lambda_fold`` instead
-    (where the map knows the fold), so that no disturbance can start a surviving whirl."""
-
-    def __init__(
-        self,
-        spec: ControlSpec,
-        nmap: NominalMap,
-        margin: float = 0.05,
-        below_fold: bool = False,
-        name: str | None = None,
-    ):
-        super().__init__(name or ("map_informed_fold" if below_fold else "map_informed"), spec)
-        if not (0 <= margin < 0.5):
-            raise ValueError(f"margin must lie in [0, 0.5), got {margin!r}")
-        self.damping = nmap.best_fold_damping() if below_fold else nmap.d_opt
-        lam = nmap.critical_at(self.damping)
-        if below_fold and math.isfinite(nmap.fold_at(self.damping)):
-            lam = nmap.fold_at(self.damping)
-        self.setpoint_rpm = nmap.rpm((1.0 - margin) * lam)
-
-    def _act(self, obs, rpm, m):
-        return [self.track(m, rpm, self.setpoint_rpm), self.spec.damping_action(self.damping)]

@@ -1,7 +1,10 @@
 """Agents for the gfb_env tasks, by role (``docs/agents.md``):
 
 * :mod:`gfb_agents.policy`: the one policy interface (``reset()``, ``predict(obs, state, episode_start)``);
-* :mod:`gfb_agents.ladder`: the benchmark's ladder, the one factory of agents;
+* :mod:`gfb_agents.ladder`: the benchmark's ladder, the one factory of agents (``ladder.build(name, env)``);
+* :mod:`gfb_agents.rules`: the honest rules, one module per family;
+* :mod:`gfb_agents.estimation`: what the rules estimate online (identification, stability, gain, probes);
+* :mod:`gfb_agents.oracles`: the oracles (they know the hidden parameters);
 * :mod:`gfb_agents.learned`: SB3 training, evaluation, export, the SB3 vector-env adapter;
 * :mod:`gfb_agents.seeds`: the seed splits.
 """

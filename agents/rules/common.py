@@ -14,10 +14,9 @@ from gfb_agents.policy import ControlSpec, ScriptedPolicy, TrackerMemory
 __all__ = ["CommandSource", "time_left_fraction", "RuleMemory", "CommandedRule"]
 
 
-# the task's command
 class CommandSource:
     """Reads the commanded operating speed (rpm) of a v1 task from the observation's named entry
-    ``speed_command``; None on a task without one (v0: the rules then run to their own set-point)."""
+    ``speed_command``; None on a task without one (the rules then run to their own set-point)."""
 
     def __init__(self, env):
         u = getattr(env, "unwrapped", env)

@@ -9,28 +9,29 @@ reads only the observation, the env's documented configuration (nominal bearing,
 the drawn parameters or the simulator state; the command and the time left come from the observation's
 named entries ``speed_command`` and ``time_left``.
 
-Rules (:func:`make_rule` builds them by name, :data:`RULE_NAMES`):
+The v1 rules (the ladder builds them by name, :func:`gfb_agents.ladder.build`; this module holds the
+main one):
 
-* ``naive``: the benchmark's naive agent (:class:`gfb_agents.ladder.NaiveRampAgent`: commanded
+* ``naive``: the benchmark's naive agent (:class:`gfb_agents.rules.naive.NaiveRampAgent`: commanded
   ``D_W = 1``, ramp at the motor limit to ``min(command, 0.95 Lambda_c(D_W = 1))`` of the nominal
-  bearing, hold), for the CLI's comparisons.
-* ``map_informed_v1``: the nominal map with ``g = 1``: ``d_opt``, hold at ``min(command, 0.95
-  Lambda_c(d_opt))``.
-* ``identify_map_v1``: identify the bearing (:func:`identify_bearing`), then the published table's
-  ``d_opt`` and ``0.95 lambda_best`` of the estimate, capped at the command (``g = 1`` assumed).
-* ``margin_search`` (the main rule): identify the bearing (randomised task: :func:`identify_bearing` at
-  the start speed, then :func:`refine_bearing` along the run-up with the sensor biases eliminated),
-  compute the growth rate of the whirl mode ``sigma(Lambda, D_W)`` of the identified plant on a grid
-  (:class:`StabilityTable`), keep a posterior over ``g`` (:class:`GainPosterior`, the documented prior),
-  fed by the unbalance probe at the start speed (:class:`UnbalanceProbe`: the 1x orbit demodulated at
-  three commanded dampings), the decay of the whirl mode after every shock (:class:`DecayMeter`) and
-  whirl onsets (evidence of instability), and run at the damping and speed that maximise the expected
-  certified progress under the posterior (:func:`choose_operating_point`); a growing envelope backs the
-  speed off below the fold and caps the set-point lower.
+  bearing, hold).
+* ``map_informed_v1`` (:mod:`gfb_agents.rules.map_informed`): the nominal map with ``g = 1``: ``d_opt``,
+  hold at ``min(command, 0.95 Lambda_c(d_opt))``.
+* ``identify_map_v1`` (:mod:`gfb_agents.rules.identify_map`): identify the bearing, then the published
+  table's ``d_opt`` and ``0.95 lambda_best`` of the estimate, capped at the command (``g = 1`` assumed).
+* ``margin_search`` (the main rule, :class:`MarginSearchAgent`): identify the bearing (randomised task:
+  :func:`identify_bearing` at the start speed, then :func:`refine_bearing` along the run-up with the sensor
+  biases eliminated), compute the growth rate of the whirl mode ``sigma(Lambda, D_W)`` of the identified plant
+  on a grid (:class:`StabilityTable`), keep a posterior over ``g`` (:class:`GainPosterior`, the documented
+  prior), fed by the unbalance probe at the start speed (:class:`UnbalanceProbe`: the 1x orbit demodulated at
+  three commanded dampings), the decay of the whirl mode after every shock (:class:`DecayMeter`) and whirl
+  onsets (evidence of instability), and run at the damping and speed that maximise the expected certified
+  progress under the posterior (:func:`choose_operating_point`); a growing envelope backs the speed off below
+  the fold and caps the set-point lower.
 * ``recovery`` (WhirlRecovery-v1): decelerate at the motor limit while the orbit envelope exceeds 0.15 C
   (the prior's best damping), learn ``g`` from the survival of the first steps, the unbalance probe at a
   low speed safe for every plausible plant and the decays, then return to the operating point of
-  ``margin_search`` (:class:`RecoveryAgent`).
+  ``margin_search`` (:class:`~gfb_agents.rules.recovery.RecoveryAgent`).
 
 Where the actual damping shows: the static equilibrium does not depend on ``D_W`` and a speed ramp
 moves it by ~1e-4 C per control step (far below the envelope's noise floor of ~0.035 C), so no speed or

@@ -158,7 +158,13 @@ class ScriptedPolicy(Policy):
     def _new_memory(self) -> TrackerMemory:
         return TrackerMemory(rate=self.spec.rpm_per_step)
 
-    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | bool | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
         obs = np.asarray(observation, dtype=np.float64)
         single = obs.ndim == 1
         obs2 = obs[None, :] if single else obs

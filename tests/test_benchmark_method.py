@@ -153,7 +153,7 @@ def test_every_task_has_one_naive_and_one_oracle_and_kinds_are_valid():
         assert all(e.kind in ladder.KINDS for e in entries)
         kinds = [e.kind for e in entries]
         assert kinds == sorted(kinds, key=ladder.KINDS.index)  # ladder order
-        # the v1 rules of gfb_agents.rules_v1
+        # the v1 rules of gfb_agents.rules
         assert sum(k == "rule" for k in kinds) >= 2, task
 
 

@@ -179,7 +179,13 @@ class LearnedPolicy(Policy):
         self._stack[:, -k:] = x2
         return self._stack[0].copy() if single else self._stack.copy()
 
-    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | bool | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
         x = self.normalize(observation)
         if self.frame_stack > 1:
             x = self._stacked(x, episode_start)

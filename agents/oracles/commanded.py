@@ -53,7 +53,13 @@ class _OneEnvPolicy(PrivilegedPolicy):
         self.name = name
         self._started = False
 
-    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | bool | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
         obs = np.asarray(observation, dtype=np.float64)
         single = obs.ndim == 1
         o = obs if single else obs[0]

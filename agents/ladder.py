@@ -1,4 +1,4 @@
-"""The benchmark's ladder of agents: naive, rules, oracle, learned -- one registry, one owner.
+"""The benchmark's ladder of agents: naive, rules, oracle, learned -- one registry, the one factory.
 
 Every agent of the benchmark is an :class:`AgentEntry`: a name, a kind (``naive`` | ``rule`` |
 ``oracle`` | ``learned``), the task ids it applies to and a factory.  The benchmark
@@ -10,44 +10,42 @@ exactly one ``naive`` and one ``oracle`` entry.
 Registering an agent (the interface for the v1 oracle, the rules and the learned agents)::
 
     from gfb_agents.ladder import AgentEntry, register, V1_TASKS
-    # make_oracle(env) -> Policy; the built-in "oracle" keeps the v0 tasks
-    register(AgentEntry("oracle_v1", "oracle", V1_TASKS, make_oracle), supersede=True)
-    register(AgentEntry("identify_shock", "rule", ("gfb_env/RunUpRandomized-v1",), make_rule))
-    register_learned("runs/RunUpRandomized-v1_sac", name="sac")   # a gfb_agents.train output (seed*/)
+    # make_oracle(env) -> Policy; supersede=True takes the tasks from the built-in oracle_v1
+    register(AgentEntry("my_oracle", "oracle", V1_TASKS, make_oracle), supersede=True)
+    register(AgentEntry("identify_shock", "rule", ("gfb_env/RunUpRandomized-v1",), make_my_rule))
+    register_learned("runs/RunUpRandomized-v1_sac", name="sac")   # a gfb_agents.learned.train output
+    policy = build("margin_search", gym.make("gfb_env/RunUp-v1"))  # any registered agent, for a script
 
 A factory is called as ``factory(env)`` with a fresh env of the task (``gymnasium.make(task,
 **env_kwargs)``, not yet reset) -- the very env the agent's episodes are then played on, so an oracle may
 keep it and read the episode's hidden parameters through the env's public accessors -- and returns a
-:class:`~gfb_agents.scripted.Policy`; a naive agent or a rule must read only the observation and the
+:class:`~gfb_agents.policy.Policy`; a naive agent or a rule must read only the observation and the
 env's documented configuration.  The evaluation calls ``policy.reset()`` before each ``env.reset`` and,
-where the policy has one, ``policy.observe_reset_info(info)`` after it (oracles only).  Factories and
-entries must be picklable (module-level functions or ``functools.partial`` of them): the evaluation
-sweep builds the agents in its worker processes.
+for an oracle (:class:`~gfb_agents.policy.PrivilegedPolicy`), ``policy.observe_reset_info(info)`` after
+it.  Factories and entries must be picklable (module-level functions or ``functools.partial`` of them):
+the evaluation sweep builds the agents in its worker processes.
 
 A learned entry has one run per independent training seed (``run_paths``); the benchmark plays every run
 on the same test seeds and the statistics stratify by run.
 
 The built-in ladder (:func:`default_ladder`): on every task the naive ramp (:class:`NaiveRampAgent`), the
-scripted rules of :mod:`gfb_agents.scripted` and ``identify_map`` of :mod:`gfb_agents.identify` as rules,
-:class:`~gfb_agents.identify.OracleAgent` as the oracle of the v0 tasks and
-:class:`~gfb_agents.oracle.CommandedOracle` (``oracle_v1``) of the v1 tasks, and the committed learned
-policies of their task.
+v1 rules of :mod:`gfb_agents.rules` on the tasks each was written for,
+:class:`~gfb_agents.oracles.commanded.CommandedOracle` (``oracle_v1``) as the oracle, and the committed
+learned policies of their task (every ``gfb_agents/policies/<agent>/`` folder, one run per ``seed*/``).
+The rules and the oracle are built only here (:func:`build`, or an entry's :meth:`AgentEntry.build`).
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
-import functools
-import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from gfb_agents.nominal_map import NominalMap
-from gfb_agents.scripted import ControlSpec, Policy, ScriptedPolicy, make_scripted_agents
+from gfb_agents.policy import ControlSpec, Policy
+from gfb_agents.rules.naive import NAIVE_DAMPING, NAIVE_MARGIN, NaiveRampAgent
 
 __all__ = [
     "KINDS",
@@ -57,6 +55,9 @@ __all__ = [
     "set_tasks",
     "unregister",
     "registered",
+    "build",
+    "make_naive",
+    "make_commanded_oracle",
     "scoped",
     "register_learned",
     "learned_entries",
@@ -65,23 +66,19 @@ __all__ = [
     "oracle_for",
     "default_ladder",
     "LADDER",
-    "V0_TASKS",
     "V1_TASKS",
     "NAIVE_DAMPING",
     "NAIVE_MARGIN",
 ]
 
 KINDS = ("naive", "rule", "oracle", "learned")
-#: name of the v1 observation entry of the commanded speed (``gfb_env.envs.units.SPEED_COMMAND``)
-SPEED_COMMAND = "speed_command"
 
-try:  # the task lists have one owner
+try:  # the task list has one owner (the retired v0 ids are no task of the ladder)
     from gfb_env.envs import ENV_IDS
 
-    V0_TASKS: tuple[str, ...] = ()  # the v0 ids are retired (gfb_env.envs.retired, issue 18)
-    V1_TASKS: tuple[str, ...] = tuple(ENV_IDS)
+    V1_TASKS: tuple[str, ...] = tuple(t for t in ENV_IDS if t.endswith("-v1"))
 except ImportError:  # pragma: no cover - gfb_env is a dependency
-    V0_TASKS, V1_TASKS = (), ()
+    V1_TASKS = ()
 
 
 @dataclass(frozen=True)
@@ -94,7 +91,7 @@ class AgentEntry:
         tasks: the task ids it applies to.
         factory: ``factory(env) -> Policy`` (None for a learned entry, which loads ``run_paths``).
         run_paths: learned entries only: one trained model per independent training seed (a directory
-            :class:`~gfb_agents.evaluate.LearnedPolicy` reads: its ``best/`` model, selected on the
+            :class:`~gfb_agents.learned.evaluate.LearnedPolicy` reads: its ``best/`` model, selected on the
             validation seeds, where present).
         description: one line for the docs.
     """
@@ -131,7 +128,7 @@ class AgentEntry:
         if not 0 <= run < self.runs:
             raise ValueError(f"agent {self.name!r} has {self.runs} run(s), asked for run {run}")
         if self.kind == "learned":
-            from gfb_agents.evaluate import LearnedPolicy
+            from gfb_agents.learned.evaluate import LearnedPolicy
 
             pol: Policy = LearnedPolicy(self.run_paths[run], name=self.name)
         else:
@@ -140,115 +137,81 @@ class AgentEntry:
         return pol
 
 
-class NaiveRampAgent(ScriptedPolicy):
-    """``naive``: the paper's constant-damping ramp (0 of the normalised scale).
-
-    Commands ``D_W = damping`` (1, the paper's Fig. 5 value) throughout and ramps at the motor limit
-    toward ``min(commanded speed, (1 - margin) Lambda_c(D_W) of the nominal bearing)``, then holds.  The
-    commanded speed is read from the observation where the task publishes one
-    (``env.observation_layout.has("speed_command")``: ``speed_command_rpm(obs)``, the v1 tasks), else the
-    task's documented
-    nominal target (``ControlSpec.target_rpm``).  It reads nothing else: no whirl feedback, no
-    identification -- what a user who knows only the paper's map of the nominal bearing would do.
-    """
-
-    def __init__(
-        self,
-        spec: ControlSpec,
-        nmap: NominalMap,
-        damping: float = 1.0,
-        margin: float = 0.05,
-        name: str = "naive",
-    ):
-        super().__init__(name, spec)
-        if not 0 <= margin < 0.5:
-            raise ValueError(f"margin must lie in [0, 0.5), got {margin!r}")
-        self.damping = float(damping)
-        self.cap_rpm = float(nmap.rpm((1.0 - margin) * nmap.critical_at(self.damping)))
-        # the command is an observation entry of the v1 tasks only (ObservationLayout.has / the decoder)
-        lay = spec.observations
-        has = getattr(lay, "has", None)
-        self._command = lay.speed_command_rpm if has is not None and has(SPEED_COMMAND) else None
-
-    def setpoint_rpm(self, obs: np.ndarray) -> float:
-        cmd = float(self._command(obs)) if self._command is not None else self.spec.target_rpm
-        return min(cmd, self.cap_rpm) if math.isfinite(cmd) else self.cap_rpm
-
-    def _act(self, obs, rpm, m):
-        return [self.track(m, rpm, self.setpoint_rpm(obs)), self.spec.damping_action(self.damping)]
-
-
-#: the naive agent's damping and margin below Lambda_c(D_W) of the nominal bearing (issue 11)
-NAIVE_DAMPING = 1.0
-NAIVE_MARGIN = 0.05
-
-
 def make_naive(env) -> NaiveRampAgent:
     """The naive ramp for ``env`` (:class:`NaiveRampAgent` with D_W = 1 and a 5 % margin)."""
     nmap = NominalMap.from_env(env)
     return NaiveRampAgent(ControlSpec.from_env(env, nmap), nmap, NAIVE_DAMPING, NAIVE_MARGIN)
 
 
-def make_scripted(name: str, env) -> Policy:
-    """The scripted baseline ``name`` of :func:`gfb_agents.scripted.make_scripted_agents`."""
-    agents = make_scripted_agents(env)
-    if name not in agents:
-        raise LookupError(f"no scripted agent {name!r} for this task; known: {sorted(agents)}")
-    return agents[name]
+def _make_map_informed_v1(env) -> Policy:
+    """``map_informed_v1``: the nominal map's schedule (g = 1) capped at the command."""
+    from gfb_agents.rules.map_informed import CommandCappedAgent, MapInformedAgent
+
+    u = getattr(env, "unwrapped", env)
+    nmap = NominalMap.from_env(u)
+    inner = MapInformedAgent(ControlSpec.from_env(u, nmap), nmap)
+    return CommandCappedAgent(u, inner, "map_informed_v1", nmap=nmap)
 
 
-def make_identify_map(env) -> Policy:
-    from gfb_agents.identify import IdentifyingAgent
+def _make_identify_map_v1(env) -> Policy:
+    """``identify_map_v1``: the published table at the identified bearing, capped at the command."""
+    from gfb_agents.rules.identify_map import IdentifyingAgent
+    from gfb_agents.rules.map_informed import CommandCappedAgent
 
-    return IdentifyingAgent(env)
+    u = getattr(env, "unwrapped", env)
+    return CommandCappedAgent(u, IdentifyingAgent(u), "identify_map_v1")
 
 
-def make_v1_rule(name: str, env) -> Policy:
-    """The v1 rule ``name`` of :func:`gfb_agents.rules_v1.make_rule`."""
-    from gfb_agents.rules_v1 import make_rule
+def _make_margin_search(env) -> Policy:
+    from gfb_agents.rules.margin_search import MarginSearchAgent
 
-    return make_rule(name, env)
+    return MarginSearchAgent(getattr(env, "unwrapped", env))
+
+
+def _make_recovery(env) -> Policy:
+    from gfb_agents.rules.recovery import RecoveryAgent
+
+    return RecoveryAgent(getattr(env, "unwrapped", env))
 
 
 def make_commanded_oracle(env) -> Policy:
-    """The v1 tasks' oracle (:class:`gfb_agents.oracle.CommandedOracle`)."""
-    from gfb_agents.oracle import CommandedOracle
+    """The v1 tasks' oracle (:class:`gfb_agents.oracles.commanded.CommandedOracle`)."""
+    from gfb_agents.oracles.commanded import CommandedOracle
 
     return CommandedOracle(env)
-
-
-def make_schedule_oracle(env) -> Policy:
-    from gfb_agents.identify import OracleAgent
-
-    return OracleAgent(env)
 
 
 #: the registry: name -> entry (use :func:`register`; :func:`default_ladder` fills it on first use)
 LADDER: dict[str, AgentEntry] = {}
 _DEFAULTS_LOADED = False
 
-#: the v0 table's scripted rules (kept so that table stays reproducible)
-_V0_RULES = (
-    ("paper_ramp_D0.3", "the paper's ramp at half the motor limit to the nominal target, D_W = 0.3"),
-    ("paper_ramp_D1", "the same at D_W = 1"),
-    ("paper_ramp_D3", "the same at D_W = 3"),
-    ("paper_ramp_D10", "the same at D_W = 10"),
-    ("map_informed", "d_opt of the nominal map, motor limit, hold at 0.95 Lambda_c(d_opt)"),
-    ("feedback", "map_informed plus whirl detection, back-off and return"),
-    ("damping_search", "probe the whirl onset at three dampings, run at the best"),
-)
-
 _RU1, _RUR1, _WR1 = "gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1"
 #: the v1 rules (``docs/agents.md``) and the tasks each was written for
 _V1_RULES = (
-    ("map_informed_v1", (_RU1, _RUR1, _WR1), "nominal map with g = 1: d_opt, hold at 0.95 Lambda_c"),
-    ("identify_map_v1", (_RUR1,), "fit the drawn bearing, its table's d_opt and 0.95 lambda_best, g = 1"),
+    (
+        "map_informed_v1",
+        (_RU1, _RUR1, _WR1),
+        _make_map_informed_v1,
+        "nominal map with g = 1: d_opt, hold at 0.95 Lambda_c",
+    ),
+    (
+        "identify_map_v1",
+        (_RUR1,),
+        _make_identify_map_v1,
+        "fit the drawn bearing, its table's d_opt and 0.95 lambda_best, g = 1",
+    ),
     (
         "margin_search",
         (_RU1, _RUR1),
+        _make_margin_search,
         "identify, estimate g (unbalance probe, shock decays), best expected hold",
     ),
-    ("recovery", (_WR1,), "decelerate out of the whirl, estimate g, return below the estimated boundary"),
+    (
+        "recovery",
+        (_WR1,),
+        _make_recovery,
+        "decelerate out of the whirl, estimate g, return below the estimated boundary",
+    ),
 )
 
 
@@ -257,8 +220,8 @@ def register(entry: AgentEntry, replace: bool = False, supersede: bool = False) 
 
     ``supersede=True`` (for a naive or oracle entry): every other entry of the same kind gives up
     ``entry.tasks`` (and is removed if no task is left), so each task keeps exactly one naive and one
-    oracle -- e.g. the v1 oracle takes the v1 tasks from the built-in ``oracle``, which keeps the v0
-    ones."""
+    oracle -- e.g. an oracle registered for RunUp-v1 takes that task from the built-in ``oracle_v1``,
+    which keeps the others."""
     _ensure_defaults()
     if entry.name in LADDER and not replace:
         raise ValueError(f"agent {entry.name!r} is already registered (pass replace=True)")
@@ -271,7 +234,7 @@ def register(entry: AgentEntry, replace: bool = False, supersede: bool = False) 
 
 def set_tasks(name: str, tasks: Iterable[str]) -> None:
     """Restrict (or extend) the tasks of the registered entry ``name``; no task left removes it (e.g.
-    ``set_tasks("paper_ramp_D0.3", V0_TASKS)`` keeps a v0 rule off the v1 tasks)."""
+    ``set_tasks("margin_search", ["gfb_env/RunUp-v1"])`` keeps a rule off the other tasks)."""
     _ensure_defaults()
     if name not in LADDER:
         raise KeyError(f"no registered agent {name!r}")
@@ -293,6 +256,18 @@ def registered() -> dict[str, AgentEntry]:
     return dict(LADDER)
 
 
+def build(name: str, env, run: int = 0) -> Policy:
+    """The registered agent ``name`` built for ``env`` (a fresh env of a v1 task, not yet reset; run
+    ``run`` of a learned agent): the one factory of every agent, for the benchmark and for scripts alike.
+    An entry's :attr:`AgentEntry.tasks` are the tasks the benchmark plays it on; a script may build a rule
+    for another v1 task (e.g. to compare rules across tasks).  LookupError naming the known agents if
+    ``name`` is not registered."""
+    _ensure_defaults()
+    if name not in LADDER:
+        raise LookupError(f"no agent {name!r} in the ladder; known: {', '.join(sorted(LADDER))}")
+    return LADDER[name].build(env, run)
+
+
 @contextlib.contextmanager
 def scoped():
     """Changes to the ladder inside the ``with`` block are undone after it (a benchmark run registers
@@ -308,39 +283,12 @@ def scoped():
 
 def default_ladder() -> dict[str, AgentEntry]:
     """The built-in entries (module docstring), by name; learned ones from the committed policies."""
-    all_tasks = V0_TASKS + V1_TASKS
     out = [
-        AgentEntry("naive", "naive", all_tasks, make_naive, description="D_W = 1, motor limit, hold"),
+        AgentEntry("naive", "naive", V1_TASKS, make_naive, description="D_W = 1, motor limit, hold"),
     ]
-    # the v0 rules fly the v0 targets (they read no speed command): v0 only; the v1 tasks have their own
-    # rules (gfb_agents.rules_v1)
-    for name, desc in _V0_RULES if V0_TASKS else ():  # the v0 ids are retired (issue 18)
-        out.append(
-            AgentEntry(name, "rule", V0_TASKS, functools.partial(make_scripted, name), description=desc)
-        )
-    if V0_TASKS:
-        out.append(
-            AgentEntry(
-                "identify_map",
-                "rule",
-                V0_TASKS,
-                make_identify_map,
-                description="fit the bearing, fly the table",
-            )
-        )
-    # the v1 rules (gfb_agents.rules_v1): each on the tasks it was written for
-    for name, tasks, desc in _V1_RULES:
-        out.append(AgentEntry(name, "rule", tasks, functools.partial(make_v1_rule, name), description=desc))
-    if V0_TASKS:
-        out.append(
-            AgentEntry(
-                "oracle",
-                "oracle",
-                V0_TASKS,
-                make_schedule_oracle,
-                description="identify_map's schedule on the true draw",
-            )
-        )
+    # the v1 rules (gfb_agents.rules): each on the tasks it was written for
+    for name, tasks, factory, desc in _V1_RULES:
+        out.append(AgentEntry(name, "rule", tasks, factory, description=desc))
     out.append(
         AgentEntry(
             "oracle_v1",
@@ -351,7 +299,7 @@ def default_ladder() -> dict[str, AgentEntry]:
         )
     )
     try:
-        from gfb_agents.evaluate import POLICIES_DIR
+        from gfb_agents import POLICIES_DIR
 
         out += learned_entries(POLICIES_DIR)
     except FileNotFoundError:  # a broken install: the benchmark refuses to run without them
@@ -367,32 +315,12 @@ def _ensure_defaults() -> None:
             LADDER.setdefault(k, v)
 
 
-def _run_dirs(d: Path) -> list[Path]:
-    """Model directories of a learned agent: ``d`` itself (``model.zip``) or its ``seed*/`` / ``run*/``
-    subfolders with a model (``model.zip`` or ``best/model.zip``), sorted."""
-    if (d / "model.zip").exists():
-        return [d]
-    subs = [
-        s
-        for s in sorted(d.iterdir())
-        if s.is_dir() and ((s / "model.zip").exists() or (s / "best" / "model.zip").exists())
-    ]
-    return subs
-
-
-def _meta_env_id(run_dir: Path) -> str | None:
-    import json
-
-    for p in (run_dir / "run.json", run_dir / "policy.json"):
-        if p.exists():
-            return json.loads(p.read_text()).get("env_id")
-    return None
-
-
 def learned_entries(root: str | Path) -> list[AgentEntry]:
     """A learned entry per folder of ``root`` (the name is the folder's; the task from its ``run.json``
     or ``policy.json``).  A folder is one agent: either one model (``model.zip``) or one model per
-    training seed (``seed*/`` subfolders, as ``gfb_agents.train --seeds`` writes them)."""
+    training seed (``seed*/`` subfolders, as ``gfb_agents.learned.train --seeds`` writes them)."""
+    from gfb_agents.learned.evaluate import run_dirs, run_env_id
+
     root = Path(root)
     if not root.is_dir():
         raise FileNotFoundError(f"no policies folder {root}")
@@ -400,9 +328,9 @@ def learned_entries(root: str | Path) -> list[AgentEntry]:
     for d in sorted(root.iterdir()):
         if not d.is_dir():
             continue
-        runs = _run_dirs(d)
+        runs = run_dirs(d)
         if runs:
-            env_id = _meta_env_id(runs[0])
+            env_id = run_env_id(runs[0])
             if env_id is None:
                 raise ValueError(f"{runs[0]} has no run.json/policy.json naming its env_id")
             out.append(AgentEntry(d.name, "learned", (env_id,), run_paths=tuple(str(r) for r in runs)))
@@ -411,11 +339,13 @@ def learned_entries(root: str | Path) -> list[AgentEntry]:
 
 def register_learned(path: str | Path, name: str | None = None, replace: bool = True) -> AgentEntry:
     """Register the learned agent in ``path`` (one model, or one per training seed in ``seed*/``)."""
+    from gfb_agents.learned.evaluate import run_dirs, run_env_id
+
     p = Path(path)
-    runs = _run_dirs(p) if p.is_dir() else []
+    runs = run_dirs(p) if p.is_dir() else []
     if not runs:
         raise FileNotFoundError(f"no trained model (model.zip or seed*/model.zip) in {p}")
-    env_id = _meta_env_id(runs[0])
+    env_id = run_env_id(runs[0])
     if env_id is None:
         raise ValueError(f"{runs[0]} has no run.json naming its env_id")
     return register(

@@ -5,8 +5,8 @@ Every script that plays or trains takes its seeds from here (no literal seeds el
 ========================  ======================  ============================================================
 split                     seeds                   used by
 ========================  ======================  ============================================================
-``TRAIN``                 1 000 000 - 1 999 999   the training envs of ``gfb_agents.train`` (run ``r``, env
-                                                  ``i``, session ``k``: :func:`train_env_seed`)
+``TRAIN``                 1 000 000 - 1 999 999   the training envs of ``gfb_agents.learned.train`` (run
+                                                  ``r``, env ``i``, session ``k``: :func:`train_env_seed`)
 ``VALIDATION``            2 000 000 - 2 999 999   model selection (the best checkpoint of a training run) and
                                                   the tuning of rules; ``--split validation`` of the benchmark
 ``TEST``                  3 000 000 - 3 999 999   the final table only (``--split test``, the default)

@@ -138,7 +138,7 @@ def _subproc_rate(env_id: str, action: np.ndarray, n: int, env_steps: int, seed:
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    from gfb_agents.train import importable_env_id
+    from gfb_agents.learned.train import importable_env_id
 
     venv = make_vec_env(importable_env_id(env_id), n_envs=n, seed=seed, vec_env_cls=SubprocVecEnv)
     a = np.tile(action, (n, 1))
@@ -295,7 +295,7 @@ def ppo_throughput(vec_env: str, n_envs: int, timesteps: int, seed: int) -> dict
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from gfb_agents.train import _split_hyperparams, load_hyperparams, make_vec_env_for
+    from gfb_agents.learned.train import _split_hyperparams, load_hyperparams, make_vec_env_for
 
     env_id = "gfb_env/RunUp-v1"
     torch.set_num_threads(1)

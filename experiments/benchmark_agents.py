@@ -51,8 +51,8 @@ import gymnasium as gym
 import numpy as np
 
 from gfb_agents import ladder as ladder_mod
-from gfb_agents.evaluate import POLICIES_DIR, EpisodeResult, run_episode, summarise
 from gfb_agents.ladder import AgentEntry, ladder_for, learned_entries, naive_for, oracle_for
+from gfb_agents.learned.evaluate import POLICIES_DIR, EpisodeResult, run_episode, summarise
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.seeds import MIN_TEST_EPISODES, SPLITS, split_seeds
 from gfb_env import jsonio
@@ -634,7 +634,7 @@ def _check_scheduler(address: str, timeout: float = SCHEDULER_CONNECT_TIMEOUT_S)
 
     Dask's client would retry for 30 s (``distributed.comm.timeouts.connect``) and then raise with a
     traceback; other schemes (``inproc://``, ``ucx://``, ``ws://``) are left to Dask.  (The same check as
-    ``python -m gfb_agents.train``'s; its owner would be ``gfb_env.sweeps``.)"""
+    ``python -m gfb_agents.learned.train``'s; its owner would be ``gfb_env.sweeps``.)"""
     import socket
     from urllib.parse import urlsplit
 
@@ -693,7 +693,7 @@ def main(argv: list[str] | None = None) -> int:
         "--learned",
         action="append",
         default=[],
-        help="a gfb_agents.train output folder (seed*/ runs) to register as a learned agent (repeatable)",
+        help="a gfb_agents.learned.train output folder (seed*/ runs) to register as a learned agent (repeatable)",
     )
     ap.add_argument(
         "--no-learned",

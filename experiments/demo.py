@@ -100,12 +100,12 @@ def critical_stage(out: Path) -> list[dict]:
 def runup_stage(out: Path, seed: int = 0) -> dict:
     import gymnasium as gym
 
-    from gfb_agents.evaluate import run_episode
-    from gfb_agents.rules_v1 import make_rule
+    from gfb_agents.ladder import build
+    from gfb_agents.learned.evaluate import run_episode
 
     env = gym.make("gfb_env/RunUp-v1", render_mode="rgb_array")
     # the benchmark's best rule on this task (README): it estimates the hidden damping gain on the way
-    agent = make_rule("margin_search", env)
+    agent = build("margin_search", env)
     res = run_episode(env, agent, seed=seed, record_path=True)
     frame = env.render()
     env.close()

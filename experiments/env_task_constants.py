@@ -5,9 +5,9 @@ For each grid in ``--grids`` (nominal bearing of :mod:`gfb_env.envs._data`, K_W 
 * ``lambda_c(D_W)`` on a log grid of the damping range, the optimum damping ``d_opt`` and the best
   stable bearing number ``lambda_best = max_D lambda_c(D)`` (golden-section refinement in log D);
 * a point on the developed whirl limit cycle at ``Lambda_w = 1.07 lambda_best``, ``D_W = d_opt``
-  (the start of WhirlRecovery-v0), with its period and extremes.
+  (the start of WhirlRecovery), with its period and extremes.
 
-For the default grid only, the RunUpRandomized-v0 lookup table of ``lambda_best`` (and ``d_opt``,
+For the default grid only, the RunUpRandomized lookup table of ``lambda_best`` (and ``d_opt``,
 ``lambda_c`` at the damping bounds) over clearance C, stiffness factor f_K (K_W = f_K K_W,WA(C)) and
 external load F_L.
 

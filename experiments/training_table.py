@@ -1,10 +1,10 @@
 """The training record of the committed learned policies: one row per training run.
 
 Reads ``policy.json`` of every ``agents/policies/<name>/seed<r>/`` (or ``<name>/``) folder written by
-``python -m gfb_agents.export_policy`` and prints a Markdown table (and, with ``--out``, a CSV) of the
+``python -m gfb_agents.learned.export_policy`` and prints a Markdown table (and, with ``--out``, a CSV) of the
 algorithm, task, training seed, environment steps, wall time, training throughput (env steps/s on this
 machine, validation included and excluded) and the validation result that selected the model.  The
-numbers are those ``gfb_agents.train`` measured while training (``run.json``); nothing is re-run::
+numbers are those ``gfb_agents.learned.train`` measured while training (``run.json``); nothing is re-run::
 
     python -m gfb_experiments.training_table [--policies DIR] [--tasks ID,ID] \\
         [--out results/training_runs.csv]
@@ -16,7 +16,7 @@ import csv
 import json
 from pathlib import Path
 
-from gfb_agents.evaluate import POLICIES_DIR
+from gfb_agents.learned.evaluate import POLICIES_DIR
 from gfb_env.scripting import OneLineParser
 
 __all__ = ["training_rows", "markdown"]

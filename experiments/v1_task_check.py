@@ -1,7 +1,7 @@
 """Check that the v1 (commanded-speed) tasks are well posed: the oracle against the naive ramp.
 
 For each v1 task, on training seeds (default 0-49): the return, success, certification and episode cost
-of :class:`gfb_agents.oracle.CommandedOracle` (``oracle_v1``, knows every hidden parameter) and of
+of :class:`gfb_agents.oracles.commanded.CommandedOracle` (``oracle_v1``, knows every hidden parameter) and of
 :class:`gfb_agents.ladder.NaiveRampAgent` (``naive``, the paper's constant-damping ramp to the command,
 capped at 0.95 Lambda_c(D_W = 1) of the nominal bearing); also the wall time per control step.  With
 ``--margins`` it instead tunes the oracle's margin on the given (training) seeds.  Run::
@@ -26,8 +26,8 @@ import gymnasium as gym
 import numpy as np
 
 import gfb_env.envs  # noqa: F401
-from gfb_agents.ladder import make_naive
-from gfb_agents.oracle import CommandedOracle
+from gfb_agents import ladder
+from gfb_agents.oracles.commanded import CommandedOracle
 from gfb_env.scripting import OneLineParser
 
 V1_IDS = ("gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1")
@@ -162,14 +162,13 @@ def gain_window(n_gains: int = 15, seeds: tuple[int, ...] = (0, 1, 2, 3), steps:
 
 
 def make_agent(name: str, env: gym.Env):
-    """``oracle_v1``, ``naive`` or a v1 rule of :func:`gfb_agents.rules_v1.make_rule` for ``env``."""
-    if name == "oracle_v1":
-        return CommandedOracle(env)
-    if name == "naive":
-        return make_naive(env)
-    from gfb_agents.rules_v1 import make_rule
+    """``oracle_v1``, ``naive`` or a v1 rule for ``env``, built by :func:`gfb_agents.ladder.build`."""
+    return ladder.build(name, env)
 
-    return make_rule(name, env)
+
+def agent_names() -> tuple[str, ...]:
+    """The agents ``--agents`` may name: the ladder's naive agent, rules and oracle."""
+    return tuple(n for n, e in ladder.registered().items() if e.kind != "learned")
 
 
 def summarise(rows: list[dict]) -> dict:
@@ -234,11 +233,10 @@ def main(argv: list[str] | None = None) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(stats, indent=1))
         return
-    from gfb_agents.rules_v1 import RULE_NAMES
-
-    unknown = [n for n in a.agents.split(",") if n not in ("oracle_v1", "naive", *RULE_NAMES)]
+    known = agent_names()
+    unknown = [n for n in a.agents.split(",") if n not in known]
     if unknown:
-        p.error(f"--agents: unknown {', '.join(unknown)} (known: oracle_v1, {', '.join(RULE_NAMES)})")
+        p.error(f"--agents: unknown {', '.join(unknown)} (known: {', '.join(known)})")
     seeds = parse_seeds(a.seeds)
     if min(seeds) < 0 or max(seeds) > 99:
         p.error("--seeds: only training seeds 0-99")

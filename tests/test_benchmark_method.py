@@ -145,22 +145,22 @@ def test_statistics_refuse_bad_input_and_pass_nan_through():
 # ------------------------------------------------------------------------------------------ ladder
 def test_every_task_has_one_naive_and_one_oracle_and_kinds_are_valid():
     from gfb_agents import ladder
-    from gfb_env.envs import ENV_IDS
 
-    for task in ENV_IDS:
+    assert ladder.V1_TASKS
+    for task in ladder.V1_TASKS:
         entries = ladder.ladder_for(task)
         assert ladder.naive_for(task).name == "naive" and ladder.oracle_for(task) is not None, task
         assert all(e.kind in ladder.KINDS for e in entries)
         kinds = [e.kind for e in entries]
         assert kinds == sorted(kinds, key=ladder.KINDS.index)  # ladder order
-        # v0: the v0 table's rules; v1: the v1 rules of gfb_agents.rules_v1
-        assert sum(k == "rule" for k in kinds) >= (5 if task.endswith("-v0") else 2), task
+        # the v1 rules of gfb_agents.rules
+        assert sum(k == "rule" for k in kinds) >= 2, task
 
 
 def test_register_refuses_duplicates_and_bad_entries_and_scoped_undoes():
     from gfb_agents import ladder
 
-    e = ladder.AgentEntry("test_rule", "rule", ("gfb_env/RunUp-v0",), ladder.make_naive)
+    e = ladder.AgentEntry("test_rule", "rule", ("gfb_env/RunUp-v1",), ladder.make_naive)
     with ladder.scoped():
         ladder.register(e)
         assert "test_rule" in ladder.registered()
@@ -168,9 +168,9 @@ def test_register_refuses_duplicates_and_bad_entries_and_scoped_undoes():
             ladder.register(e)
         ladder.register(e, replace=True)
         # a second naive agent for the task is an error where the benchmark asks for it
-        ladder.register(ladder.AgentEntry("naive2", "naive", ("gfb_env/RunUp-v0",), ladder.make_naive))
+        ladder.register(ladder.AgentEntry("naive2", "naive", ("gfb_env/RunUp-v1",), ladder.make_naive))
         with pytest.raises(ValueError, match="2 naive agents"):
-            ladder.naive_for("gfb_env/RunUp-v0")
+            ladder.naive_for("gfb_env/RunUp-v1")
     assert "test_rule" not in ladder.registered() and "naive2" not in ladder.registered()
     with pytest.raises(ValueError, match="kind"):
         ladder.AgentEntry("x", "scripted", ("t",), ladder.make_naive)
@@ -194,12 +194,10 @@ def test_a_v1_reference_supersedes_the_builtin_on_its_tasks_only():
         assert ladder.oracle_for(ladder.V1_TASKS[0]).name == "my_oracle"
         for t in ladder.V1_TASKS[1:]:
             assert ladder.oracle_for(t).name == "oracle_v1"
-        for t in ladder.V0_TASKS:
-            assert ladder.oracle_for(t).name == "oracle"
-        ladder.set_tasks("paper_ramp_D10", [])
-        assert "paper_ramp_D10" not in ladder.registered()
+        ladder.set_tasks("margin_search", [])
+        assert "margin_search" not in ladder.registered()
     assert ladder.oracle_for(ladder.V1_TASKS[0]).name == "oracle_v1"
-    assert "paper_ramp_D10" in ladder.registered()
+    assert "margin_search" in ladder.registered()
 
 
 def test_naive_ramp_reads_the_speed_command_where_the_task_has_one():
@@ -207,9 +205,9 @@ def test_naive_ramp_reads_the_speed_command_where_the_task_has_one():
 
     from gfb_agents import ladder
     from gfb_agents.nominal_map import NominalMap
-    from gfb_agents.scripted import ControlSpec
+    from gfb_agents.policy import ControlSpec
 
-    env = gym.make("gfb_env/RunUp-v0")
+    env = gym.make("gfb_env/RunUp-v1")
     nmap = NominalMap.from_env(env)
     spec = ControlSpec.from_env(env, nmap)
 
@@ -241,13 +239,14 @@ def test_naive_ramp_holds_below_lambda_c_of_damping_one():
     from gfb_agents import ladder
     from gfb_agents.nominal_map import NominalMap
 
-    env = gym.make("gfb_env/RunUp-v0")
+    env = gym.make("gfb_env/RunUp-v1")
     nmap = NominalMap.from_env(env)
     agent = ladder.make_naive(env)
     assert agent.kind == "scripted" and agent.damping == 1.0
     cap = nmap.rpm(0.95 * nmap.critical_at(1.0))
     obs, _ = env.reset(seed=seeds.DEV.start)
-    assert agent.setpoint_rpm(obs) == pytest.approx(min(cap, agent.spec.target_rpm))
+    cmd = agent.spec.observations.speed_command_rpm(obs)
+    assert agent.setpoint_rpm(obs) == pytest.approx(min(cap, cmd))
     a, _ = agent.predict(obs, episode_start=True)
     assert a[0] == pytest.approx(1.0)  # full motor rate from the start speed
     assert env.unwrapped.damping_from_action(float(a[1])) == pytest.approx(1.0, rel=1e-6)
@@ -262,7 +261,7 @@ def test_learned_entries_find_single_and_multi_seed_folders(tmp_path):
     one = tmp_path / "RunUp_ppo"
     one.mkdir()
     (one / "model.zip").write_bytes(b"")
-    (one / "run.json").write_text(json.dumps({"env_id": "gfb_env/RunUp-v0", "algo": "ppo"}))
+    (one / "run.json").write_text(json.dumps({"env_id": "gfb_env/RunUp-v1", "algo": "ppo"}))
     multi = tmp_path / "RunUp_sac5"
     for k in range(3):
         d = multi / f"seed{k}" / "best"
@@ -272,7 +271,7 @@ def test_learned_entries_find_single_and_multi_seed_folders(tmp_path):
     (tmp_path / "empty").mkdir()
     got = {e.name: e for e in ladder.learned_entries(tmp_path)}
     assert set(got) == {"RunUp_ppo", "RunUp_sac5"}
-    assert got["RunUp_ppo"].runs == 1 and got["RunUp_ppo"].tasks == ("gfb_env/RunUp-v0",)
+    assert got["RunUp_ppo"].runs == 1 and got["RunUp_ppo"].tasks == ("gfb_env/RunUp-v1",)
     assert got["RunUp_sac5"].runs == 3 and got["RunUp_sac5"].tasks == ("gfb_env/RunUp-v1",)
     with pytest.raises(FileNotFoundError):
         ladder.register_learned(tmp_path / "empty")
@@ -283,10 +282,10 @@ def test_table_rows_from_constructed_episodes():
     """reduce_results on hand-made episodes: per-seed normalisation, one row per agent, learned agents
     stratified by training seed."""
     from gfb_agents import ladder
-    from gfb_agents.evaluate import EpisodeResult
+    from gfb_agents.learned.evaluate import EpisodeResult
     from gfb_experiments.benchmark_agents import Chunk, reduce_results
 
-    task = "gfb_env/RunUp-v0"
+    task = "gfb_env/RunUp-v1"
     sd = seeds.split_seeds("test", 8)
     naive_r = np.linspace(-10.0, 4.0, 8)
     oracle_r = naive_r + np.linspace(20.0, 40.0, 8)
@@ -321,7 +320,7 @@ def test_table_rows_from_constructed_episodes():
     by = {r["agent"]: r for r in rows}
     assert [r["kind"] for r in rows] == ["naive", "rule", "oracle", "learned"]
     assert by["naive"]["normalized_iqm"] == pytest.approx(0.0)
-    assert by["oracle"]["normalized_iqm"] == pytest.approx(1.0)
+    assert by["oracle_v1"]["normalized_iqm"] == pytest.approx(1.0)
     assert by["half"]["normalized_iqm"] == pytest.approx(0.5)
     assert by["half"]["normalized_ci_low"] == pytest.approx(0.5)  # no spread, no interval
     assert by["learn"]["normalized_score"] == pytest.approx(0.4) and by["learn"]["training_seeds"] == 2
@@ -339,10 +338,10 @@ def test_chunks_on_a_dask_cluster_equal_the_local_run_and_are_cached(tmp_path):
     from gfb_agents import ladder
     from gfb_experiments.benchmark_agents import plan, run_chunks
 
-    kw = {"gfb_env/RunUp-v0": {"max_episode_steps": 4}}
+    kw = {"gfb_env/RunUp-v1": {"max_episode_steps": 4}}
     with ladder.scoped():
-        chunks = plan(["gfb_env/RunUp-v0"], "validation", 2, 1, {"naive"}, kw)
-    assert {c.entry.name for c in chunks} == {"naive", "oracle"} and len(chunks) == 4
+        chunks = plan(["gfb_env/RunUp-v1"], "validation", 2, 1, {"naive"}, kw)
+    assert {c.entry.name for c in chunks} == {"naive", "oracle_v1"} and len(chunks) == 4
     assert all(s in seeds.VALIDATION for c in chunks for s in c.seeds)
     local = run_chunks(chunks, tmp_path / "local", progress=False)
     with distributed.LocalCluster(

@@ -18,8 +18,8 @@ from types import SimpleNamespace
 import pytest
 
 from gfb_agents import train as train_mod
-from gfb_agents.train import MAX_FRAME_STACK, TrainConfig, load_hyperparams
-from gfb_agents.train import main as train_main
+from gfb_agents.learned.train import MAX_FRAME_STACK, TrainConfig, load_hyperparams
+from gfb_agents.learned.train import main as train_main
 from gfb_experiments.benchmark_agents import main as bench_main
 
 ENV = "gfb_env/RunUp-v1"
@@ -206,7 +206,7 @@ class _FakeModel:
 def test_a_failure_while_best_is_rewritten_keeps_the_old_best_whole(tmp_path, monkeypatch):
     """Defect 13: a kill while ``best/`` was rewritten left a torn ``best/model.zip`` beside the old
     ``best.json``.  Validation improves twice; the second save fails half-way: the first best stays."""
-    import gfb_agents.evaluate as evaluate_mod
+    import gfb_agents.learned.evaluate as evaluate_mod
 
     returns = iter([1.0, 2.0])
     monkeypatch.setattr(evaluate_mod.LearnedPolicy, "from_model", staticmethod(lambda *a, **k: None))
@@ -298,7 +298,7 @@ def test_a_killed_session_keeps_its_record_in_run_json(tmp_path, monkeypatch):
 
 
 def test_sigkill_then_resume_lists_both_sessions(tmp_path):
-    """Defect 14 as the issue met it: ``python -m gfb_agents.train`` SIGKILLed after its first checkpoint,
+    """Defect 14 as the issue met it: ``python -m gfb_agents.learned.train`` SIGKILLed after its first checkpoint,
     then the same command (with a total just past the checkpoint): ``run.json`` lists both sessions."""
     yml = _tiny_yaml(tmp_path)
     out = tmp_path / "exp"
@@ -306,7 +306,7 @@ def test_sigkill_then_resume_lists_both_sessions(tmp_path):
     argv += ["--eval-freq", "100000", "--eval-episodes", "1", "--env-kwargs", '{"max_episode_steps": 8}']
     argv += ["--out", str(out), "--no-progress-bar", "--no-tensorboard"]
     latest = out / "seed0" / "checkpoints" / "latest.json"
-    cmd = [sys.executable, "-m", "gfb_agents.train", *argv, "--timesteps", "1000000"]  # never finishes
+    cmd = [sys.executable, "-m", "gfb_agents.learned.train", *argv, "--timesteps", "1000000"]  # never finishes
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         deadline = time.monotonic() + 120

@@ -11,7 +11,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gfb_agents.scripted import ControlSpec
+from gfb_agents.policy import ControlSpec
 from gfb_env.envs import ENV_IDS, RunUpEnv
 from gfb_env.envs.config import CONTROL_INTERVAL_RANGE, EnvConfig
 from gfb_env.envs.episode import StepOutcome, TerminationReason

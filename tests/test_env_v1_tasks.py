@@ -393,9 +393,9 @@ def test_random_actions_for_whole_episodes_never_give_nan(env_id):
 def test_the_oracle_succeeds_where_the_naive_ramp_does_not():
     """Without shocks the oracle's plan (command D_opt / g, ramp to min(cmd, 0.99 lambda_best), hold)
     certifies; the naive constant-damping ramp stops short of the command (or whirls)."""
-    from gfb_agents.evaluate import run_episode
     from gfb_agents.ladder import make_naive
-    from gfb_agents.oracle import CommandedOracle
+    from gfb_agents.learned.evaluate import run_episode
+    from gfb_agents.oracles.commanded import CommandedOracle
 
     env = gym.make("gfb_env/RunUp-v1", **NO_SHOCKS)
     oracle, naive = CommandedOracle(env), make_naive(env)
@@ -411,15 +411,16 @@ def test_the_oracle_succeeds_where_the_naive_ramp_does_not():
 
 
 def test_the_oracle_recovers_from_the_whirl():
-    from gfb_agents.oracle import CommandedOracle
+    from gfb_agents.oracles.commanded import CommandedOracle
 
     env = gym.make("gfb_env/WhirlRecovery-v1", **NO_SHOCKS)
     oracle = CommandedOracle(env)
     obs, info = env.reset(seed=0)
-    oracle.reset(env, obs, info)
+    oracle.reset()
+    oracle.observe_reset_info(info)
     speeds = []
     while True:
-        obs, r, term, trunc, info = env.step(oracle.act(obs))
+        obs, r, term, trunc, info = env.step(oracle.predict(obs)[0])
         speeds.append(info["bearing_number"])
         if term or trunc:
             break

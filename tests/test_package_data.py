@@ -63,9 +63,9 @@ def test_nominal_map_missing_hysteresis_map_is_an_error_not_an_empty_fold(tmp_pa
 
 
 def test_load_learned_policies_missing_folder_raises(tmp_path):
-    from gfb_agents.evaluate import POLICIES_DIR, load_learned_policies
+    from gfb_agents.learned.evaluate import POLICIES_DIR, load_learned_policies
 
-    assert (POLICIES_DIR / "WhirlRecovery_sac" / "model.zip").is_file()
+    assert (POLICIES_DIR / "WhirlRecovery-v1_sac" / "seed0" / "model.zip").is_file()
     with pytest.raises(FileNotFoundError, match="no policies folder"):
         load_learned_policies(tmp_path / "none")
     assert load_learned_policies(tmp_path) == []  # existing but empty: no policies, not an error
@@ -86,10 +86,10 @@ def test_benchmark_refuses_to_run_without_expected_learned_policies(tmp_path, ca
 
 
 def test_train_finds_its_hyperparameters_in_the_package():
-    import gfb_agents.train
-    from gfb_agents.train import HYPERPARAMS_DIR, load_hyperparams
+    import gfb_agents.learned.train
+    from gfb_agents.learned.train import HYPERPARAMS_DIR, load_hyperparams
 
-    assert HYPERPARAMS_DIR == Path(gfb_agents.train.__file__).resolve().parent / "hyperparams"
+    assert HYPERPARAMS_DIR == Path(gfb_agents.learned.train.__file__).resolve().parent.parent / "hyperparams"
     assert load_hyperparams("sac", "gfb_env/WhirlRecovery-v1")
 
 

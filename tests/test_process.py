@@ -37,7 +37,7 @@ def test_import_gfb_env_leaves_os_environ_unchanged(tmp_path):
         import gymnasium  # a dependency; it sets PYGAME_HIDE_SUPPORT_PROMPT itself, not our business
         before = dict(os.environ)
         import gfb_env, gfb_env.envs, gfb_env.analysis
-        import gfb_agents.evaluate, gfb_agents.scripted, gfb_agents.train
+        import gfb_agents.learned.evaluate, gfb_agents.policy, gfb_agents.learned.train
         after = dict(os.environ)
         print(json.dumps({k: [before.get(k), after.get(k)] for k in set(before) | set(after)
                           if before.get(k) != after.get(k)}))
@@ -62,7 +62,7 @@ def test_subproc_vec_env_from_python_c(tmp_path):
         """
         import json, time
         import numpy as np
-        from gfb_agents.train import make_vec_env_for
+        from gfb_agents.learned.train import make_vec_env_for
 
         t0 = time.perf_counter()
         venv = make_vec_env_for("gfb_env/RunUp-v1", 2, seed=3, vec_env="subproc")
@@ -83,7 +83,7 @@ def test_subproc_vec_env_from_python_c(tmp_path):
 
 
 def test_importable_env_id():
-    from gfb_agents.train import importable_env_id
+    from gfb_agents.learned.train import importable_env_id
 
     assert importable_env_id("gfb_env/RunUp-v1") == "gfb_env:gfb_env/RunUp-v1"
     assert importable_env_id("gfb_env:gfb_env/RunUp-v1") == "gfb_env:gfb_env/RunUp-v1"

@@ -1,6 +1,7 @@
-"""Tests of the v1 rules (agents/rules_v1.py, issue 11): the plant's stability table against the
-documented task constants, the posterior over the hidden damping gain, the noise-aware identification,
-and short episodes of each rule (finite actions in the action space).  Training seeds only (< 10000)."""
+"""Tests of the v1 rules (agents/rules/, agents/estimation/, issue 11): the plant's stability table
+against the documented task constants, the posterior over the hidden damping gain, the noise-aware
+identification, and short episodes of each rule (finite actions in the action space).  Training seeds
+only (< 10000)."""
 
 from __future__ import annotations
 
@@ -9,19 +10,15 @@ import numpy as np
 import pytest
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
-from gfb_agents.identify import BearingIdentifier
-from gfb_agents.rules_v1 import (
-    RULE_NAMES,
-    DecayMeter,
-    GainPosterior,
-    StabilityTable,
-    choose_operating_point,
-    identify_bearing,
-    make_rule,
-    refine_bearing,
-)
+from gfb_agents.estimation.decay import DecayMeter
+from gfb_agents.estimation.gain import GainPosterior
+from gfb_agents.estimation.identification import BearingIdentifier, identify_bearing, refine_bearing
+from gfb_agents.estimation.stability import StabilityTable
+from gfb_agents.ladder import build as make_rule
+from gfb_agents.rules.operating_point import OperatingPointConfig, choose_operating_point
 from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.envs.base import viscoelastic_model
+from gfb_experiments.rules_check import RULE_NAMES
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +48,9 @@ def test_posterior_finds_the_gain_from_two_decay_rates(table):
     assert abs(np.log(post.gains[int(np.argmax(w))] / g_true)) < 0.15
     assert w[post.gains < 1.0].sum() < 0.05  # the side of the optimum is resolved
     # and the operating point it implies: the damping that is optimal for that gain, near the boundary
-    d, lam, _ = choose_operating_point(table, post, 0.45, 0.73, 0.73, (0.1, 10.0), 0.004)
+    d, lam, _ = choose_operating_point(
+        table, post, 0.45, 0.73, 0.73, OperatingPointConfig((0.1, 10.0), 0.004)
+    )
     assert 0.5 < d * g_true / 2.24 < 2.0
     assert 0.66 < lam < 0.7014
 
@@ -145,7 +144,7 @@ def test_recovery_starts_from_the_prior_over_the_gain():
     pol = make_rule("recovery", env)
     obs, info = env.reset(seed=5)
     pol.predict(obs, episode_start=True)
-    post = pol._mem[0]["post"]
+    post = pol._mem[0].post
     w = np.exp(post.log_w - np.max(post.log_w))
     assert len(post.gains) > 1 and np.ptp(w) < 1e-12
     env.close()
@@ -154,14 +153,14 @@ def test_recovery_starts_from_the_prior_over_the_gain():
 def test_recovery_survival_weighs_down_the_gains_outside_the_window():
     """Alive after the first steps: plants whose actual damping g d_start lies outside the survival
     window (they touch down within two steps on the training seeds) lose a factor survival_odds."""
-    from gfb_agents.rules_v1 import RecoveryAgent
+    from gfb_agents.rules.recovery import RecoveryAgent
 
     env = gym.make("gfb_env/WhirlRecovery-v1")
     pol = RecoveryAgent(env.unwrapped)
     m = pol._new_memory()
-    m["d_start"] = 3.2  # (the task's start command d_opt = 2.24 keeps every gain of its prior inside)
+    m.d_start = 3.2  # (the task's start command d_opt = 2.24 keeps every gain of its prior inside)
     pol._survived(m)
-    post = m["post"]
+    post = m.post
     actual = post.gains * 3.2
     inside = (actual >= 1.2) & (actual <= 5.0)
     assert inside.any() and (~inside).any()
@@ -171,7 +170,7 @@ def test_recovery_survival_weighs_down_the_gains_outside_the_window():
 
 
 def test_recovery_probe_speed_keeps_every_plausible_plant_stable():
-    from gfb_agents.rules_v1 import RecoveryAgent
+    from gfb_agents.rules.recovery import RecoveryAgent
 
     model = viscoelastic_model("31x7", NOMINAL_BEARING)
     table = StabilityTable.compute(model, 0.50, 0.70, n_lambda=9, damping_range=(0.1, 10.0), n_damping=11)
@@ -179,11 +178,11 @@ def test_recovery_probe_speed_keeps_every_plausible_plant_stable():
     env = gym.make("gfb_env/WhirlRecovery-v1")
     pol = RecoveryAgent(env.unwrapped)
     m = pol._new_memory()
-    m["table"] = table
-    m["post"].log_w = np.where((m["post"].gains > 0.5) & (m["post"].gains < 2.0), 0.0, -50.0)
+    m.table = table
+    m.post.log_w = np.where((m.post.gains > 0.5) & (m.post.gains < 2.0), 0.0, -50.0)
     lam = pol.probe_bearing_number(m, 0.66)
     assert 0.50 < lam < 0.66
-    plausible = m["post"].gains[(m["post"].gains > 0.5) & (m["post"].gains < 2.0)]
+    plausible = m.post.gains[(m.post.gains > 0.5) & (m.post.gains < 2.0)]
     for d in pol.unbalance_dampings:
         # at the probe speed every plausible plant decays at the probe's rate at least (table resolution)
         assert np.all(table.growth_rate(lam, plausible * d) <= pol.probe_growth_rate + 2e-4)
@@ -223,7 +222,7 @@ def test_recovery_learns_the_gain_and_ends_certified(seed):
         a, _ = pol.predict(obs, episode_start=(k == 0))
         obs, r, term, trunc, info = env.step(a)
         k, done = k + 1, term or trunc
-    post = pol._mem[0]["post"]
+    post = pol._mem[0].post
     mu = float(post.weights @ np.log(post.gains))
     assert abs(mu - np.log(u.damping_gain)) < 0.2, (mu, u.damping_gain)
     assert info["certified"]
@@ -235,13 +234,13 @@ def test_make_rule_names():
     env = gym.make("gfb_env/RunUp-v1")
     for name in RULE_NAMES:
         assert make_rule(name, env).name == name
-    with pytest.raises(ValueError, match="unknown rule"):
+    with pytest.raises(LookupError, match="no agent 'nope' in the ladder"):
         make_rule("nope", env)
     env.close()
 
 
 def test_cli_refuses_test_seeds_and_missing_arguments(capsys):
-    from gfb_agents.rules_v1 import main
+    from gfb_experiments.rules_check import main
 
     assert main(["--env", "gfb_env/RunUp-v1", "--rule", "naive", "--seeds", "10000", "10002"]) == 2
     assert "training/validation seeds only" in capsys.readouterr().out
@@ -252,30 +251,30 @@ def test_creep_raises_the_set_point_until_the_time_runs_short():
     """The optional boundary creep (off by default): from the model's set-point below the command it
     raises the set-point by creep_rate per step at a frozen damping, holds creep_margin below a whirl
     onset, and keeps the highest calm speed when the time runs short."""
-    from gfb_agents.rules_v1 import MarginSearchAgent
+    from gfb_agents.rules.margin_search import MarginSearchAgent, Mode
 
     env = gym.make("gfb_env/RunUp-v1")
     u = env.unwrapped
     pol = MarginSearchAgent(u, creep_rate=0.01, creep_margin=0.015)
     assert MarginSearchAgent(u).creep_rate == 0.0  # the default rule does not creep
     m = pol._new_memory()
-    m.update({"setpoint": 30000.0, "mode": "run", "d_cmd": 1.3, "cmd_rpm": 40000.0, "k": 20})
+    m.setpoint, m.mode, m.d_cmd, m.cmd_rpm, m.k = 30000.0, Mode.RUN, 1.3, 40000.0, 20
     obs = np.zeros(u.observation_space.shape, dtype=np.float32)
     obs[u.observation_layout.index("time_left")] = 0.8  # 200 steps left
     pol._creep(m, obs, 30000.0)
-    assert m["setpoint"] == pytest.approx(30300.0) and m["creep"]["d"] == 1.3
-    m["d_cmd"] = 2.0  # a new decision may not move the damping during the search
+    assert m.setpoint == pytest.approx(30300.0) and m.creep.d == 1.3
+    m.d_cmd = 2.0  # a new decision may not move the damping during the search
     pol._creep(m, obs, 30300.0)
-    assert m["setpoint"] == pytest.approx(30603.0) and m["d_cmd"] == 1.3
+    assert m.setpoint == pytest.approx(30603.0) and m.d_cmd == 1.3
     pol._creep(m, obs, 29000.0)  # not there yet: no further rise
-    assert m["setpoint"] == pytest.approx(30603.0)
+    assert m.setpoint == pytest.approx(30603.0)
     # out of time without an onset: the highest speed crept is the final one
     obs[u.observation_layout.index("time_left")] = 0.05
     pol._creep(m, obs, 30603.0)
-    assert m["creep"]["final_rpm"] == pytest.approx(30603.0) and m["setpoint"] == pytest.approx(30603.0)
+    assert m.creep.final_rpm == pytest.approx(30603.0) and m.setpoint == pytest.approx(30603.0)
     # an onset (set by the whirl guard) holds creep_margin below it
-    m["creep"].update({"onset_rpm": 30500.0, "final_rpm": 30500.0 * (1 - 0.015)})
-    m["setpoint"] = 33000.0
+    m.creep.onset_rpm, m.creep.final_rpm = 30500.0, 30500.0 * (1 - 0.015)
+    m.setpoint = 33000.0
     pol._creep(m, obs, 30000.0)
-    assert m["setpoint"] == pytest.approx(30042.5)
+    assert m.setpoint == pytest.approx(30042.5)
     env.close()

@@ -1,6 +1,6 @@
 """The Stable-Baselines3 adapter of the native vector env (issue 13): bit for bit SB3's DummyVecEnv over
 the same id and seeds (autoresets, terminal observations, time-limit flags), VecNormalize over it, and a
-tiny PPO run through ``gfb_agents.train`` with ``vec_env="native"``."""
+tiny PPO run through ``gfb_agents.learned.train`` with ``vec_env="native"``."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor, VecNormalize
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
-from gfb_agents.train import TrainConfig, make_vec_env_for, train
-from gfb_agents.vec_env import GFBSB3VecEnv
+from gfb_agents.learned.train import TrainConfig, make_vec_env_for, train
+from gfb_agents.learned.vec_env import GFBSB3VecEnv
 from tests.test_agents import _tiny_yaml
 from tests.test_vector_env import _same_value
 

@@ -9,8 +9,9 @@ import time
 import numpy as np
 import pytest
 
-from gfb_agents.evaluate import run_episode
-from gfb_agents.scripted import ControlSpec, ScheduleAgent
+from gfb_agents.learned.evaluate import run_episode
+from gfb_agents.policy import ControlSpec
+from gfb_agents.rules.schedule import ScheduleAgent
 from gfb_env.analysis.response import unbalance_response
 from gfb_env.analysis.schedule import design_run_up_schedule, verify_schedule
 from gfb_env.cli import main as gfb

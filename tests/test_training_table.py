@@ -52,7 +52,7 @@ def test_cli_writes_the_csv_and_refuses_a_missing_folder(tmp_path, capsys):
 
 def test_the_committed_v1_policies_have_their_training_record():
     """Every committed v1 policy carries the throughput and wall time of its training run."""
-    rows = training_rows(__import__("gfb_agents.evaluate", fromlist=["POLICIES_DIR"]).POLICIES_DIR)
+    rows = training_rows(__import__("gfb_agents.learned.evaluate", fromlist=["POLICIES_DIR"]).POLICIES_DIR)
     v1 = [r for r in rows if r["env_id"] and r["env_id"].endswith("-v1")]
     assert v1
     for r in v1:

@@ -36,12 +36,6 @@ DATA_FILES = (
     "gfb_env/data/hysteresis_map_tasks.csv",
     "gfb_agents/hyperparams/ppo.yml",
     "gfb_agents/hyperparams/sac.yml",
-    "gfb_agents/policies/RunUpRandomized_sac/model.zip",
-    "gfb_agents/policies/RunUpRandomized_sac/vecnormalize.pkl",
-    "gfb_agents/policies/RunUpRandomized_sac/policy.json",
-    "gfb_agents/policies/WhirlRecovery_sac/model.zip",
-    "gfb_agents/policies/WhirlRecovery_sac/vecnormalize.pkl",
-    "gfb_agents/policies/WhirlRecovery_sac/policy.json",
     "gfb_agents/hyperparams/recurrentppo.yml",
     # the v1 learned agents: one folder per training seed
     *(
@@ -67,9 +61,9 @@ CHECKS = textwrap.dedent(
     from gfb_env.envs import ENV_IDS
     from gfb_env.envs._data import TaskConstantsWarning
     from gfb_env.analysis import optimal_foil_damping
-    from gfb_agents.evaluate import load_learned_policies
+    from gfb_agents.learned.evaluate import load_learned_policies
     from gfb_agents.nominal_map import NominalMap
-    from gfb_agents.train import load_hyperparams
+    from gfb_agents.learned.train import load_hyperparams
 
     warnings.simplefilter("error", TaskConstantsWarning)  # a recompute would mean missing data
     out = {"files": {m.__name__: m.__file__ for m in (gfb_env, gfb_agents, gfb_experiments)},
@@ -91,9 +85,9 @@ CHECKS = textwrap.dedent(
         action, _ = pol.predict(obs)
         out["policies"][pol.name] = bool(env.action_space.contains(np.asarray(action, dtype=np.float32)))
         env.close()
-    out["hyperparams"] = sorted(load_hyperparams("sac", "gfb_env/WhirlRecovery-v0"))
+    out["hyperparams"] = sorted(load_hyperparams("sac", "gfb_env/WhirlRecovery-v1"))
     out["d_opt_kw1"] = optimal_foil_damping(1.0)
-    NominalMap.from_env(gym.make("gfb_env/RunUp-v0"))  # reads the shipped hysteresis map
+    NominalMap.from_env(gym.make("gfb_env/RunUp-v1"))  # reads the shipped hysteresis map
     print(json.dumps(out))
     """
 )
@@ -157,7 +151,12 @@ def test_wheel_installs_and_runs_outside_the_repository(tmp_path):
     from gfb_env.envs import ENV_IDS
 
     assert out["tasks"] == dict.fromkeys(ENV_IDS, True)
-    assert out["policies"] == {"RunUpRandomized_sac": True, "WhirlRecovery_sac": True}
+    # every committed model (one per training seed of each learned agent) loads and acts from the wheel
+    committed = {
+        f"{z.parent.parent.name}/{z.parent.name}"
+        for z in (REPO / "agents" / "policies").glob("*/seed*/model.zip")
+    }
+    assert len(committed) >= 9 and out["policies"] == dict.fromkeys(committed, True)
     assert "policy" in out["hyperparams"] and 1.0 < out["d_opt_kw1"] < 10.0
     gfb = venv_dir / "bin" / "gfb"
     assert gfb.read_text().startswith(f"#!{py}"), gfb.read_text()[:200]

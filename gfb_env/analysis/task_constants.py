@@ -129,7 +129,7 @@ def developed_whirl_state(
     }
 
 
-#: Whirl start of WhirlRecovery-v0: Lambda_w = WHIRL_FACTOR * lambda_best at the optimum damping.
+#: Whirl start of WhirlRecovery: Lambda_w = WHIRL_FACTOR * lambda_best at the optimum damping.
 #: (At 1.07 a damping outside [1.6, 3.5] touched down within 120 tau, leaving an agent no time to
 #: react; at 1.03 the worst damping takes 460-1000 tau, 8-16 control steps; 31x7, measured.)
 WHIRL_FACTOR = 1.03

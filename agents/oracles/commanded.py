@@ -19,19 +19,18 @@ command ``D_opt / g``) and the true speed.  It does not know future shocks.  Its
 The naive baseline (0 on that scale) is :class:`gfb_agents.ladder.NaiveRampAgent` (``naive``), the same
 agent on every task.
 
-It follows the agents' interface (:class:`gfb_agents.scripted.Policy`: ``reset()``, ``predict(obs,
-...)``; the oracle takes the episode through ``observe_reset_info`` like
-:class:`gfb_agents.identify.OracleAgent`), and also offer ``reset(env, obs, info)`` / ``act(obs)``.
-One env at a time.
+It follows the agents' interface (:class:`gfb_agents.policy.PrivilegedPolicy`: ``reset()``,
+``observe_reset_info(info)`` after the env's reset, ``predict(obs, ...)``).  One env at a time.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from gfb_agents.scripted import Policy
+from gfb_agents.policy import PrivilegedPolicy
 
 __all__ = ["CommandedOracle", "ORACLE_MARGIN", "ORACLE_COLLAPSE_AMPLITUDE"]
 
@@ -45,7 +44,7 @@ ORACLE_MARGIN = {
 ORACLE_COLLAPSE_AMPLITUDE = 0.05
 
 
-class _OneEnvPolicy(Policy):
+class _OneEnvPolicy(PrivilegedPolicy):
     """A policy bound to one env (``predict`` takes one observation or a batch of one)."""
 
     def __init__(self, env: Any, name: str):
@@ -54,7 +53,13 @@ class _OneEnvPolicy(Policy):
         self.name = name
         self._started = False
 
-    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | bool | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
         obs = np.asarray(observation, dtype=np.float64)
         single = obs.ndim == 1
         o = obs if single else obs[0]
@@ -62,20 +67,14 @@ class _OneEnvPolicy(Policy):
             raise ValueError(f"{self.name} plays one env at a time, got a batch of {obs.shape[0]}")
         if episode_start is not None and bool(np.asarray(episode_start).reshape(-1)[0]) and not self._started:
             self._begin(o)
-        a = np.asarray(self.act(o), dtype=np.float32)
+        a = np.asarray(self._act(o), dtype=np.float32)
         return (a if single else a[None, :]), state
 
-    def reset(self, env: Any = None, obs: np.ndarray | None = None, info: dict | None = None) -> None:
-        """Forget the episode; with ``env`` (and its reset ``obs``/``info``) start the new one at once."""
+    def reset(self) -> None:
+        """Forget the episode (the plan is made again at the next one's start)."""
         self._started = False
-        if env is not None:
-            self.env, self.u = env, getattr(env, "unwrapped", env)
-            if info is not None:
-                self.observe_reset_info(info)
-            if obs is not None:
-                self._begin(np.asarray(obs, dtype=np.float64))
 
-    def observe_reset_info(self, info: dict) -> None:
+    def observe_reset_info(self, info: Mapping[str, Any]) -> None:
         """Called by the evaluation after ``env.reset`` (the episode's plan is made here)."""
         self._begin(None)
 
@@ -86,7 +85,7 @@ class _OneEnvPolicy(Policy):
     def _plan(self) -> None:  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def act(self, obs: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
+    def _act(self, obs: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
 
     def _track(self, setpoint_bearing_number: float) -> float:
@@ -126,7 +125,7 @@ class CommandedOracle(_OneEnvPolicy):
         self.damping_action = u.action_from_damping(best.commanded_damping)
         self.recovering = self.whirl_start
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
+    def _act(self, obs: np.ndarray) -> np.ndarray:
         if not self._started:
             self._begin(obs)
         self._obs = obs

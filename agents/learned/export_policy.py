@@ -1,6 +1,6 @@
 """Copy trained policies from a training folder (``runs/...``, gitignored) into ``agents/policies/<name>/``.
 
-    python -m gfb_agents.export_policy RUN_DIR NAME [--which {best,final}]
+    python -m gfb_agents.learned.export_policy RUN_DIR NAME [--which {best,final}]
 
 ``RUN_DIR`` is one run (``runs/<env>_<algo>/seed<r>``, with ``run.json``) or an experiment of several
 training seeds (``runs/<env>_<algo>``, with ``seed*/run.json``).  For each run it copies ``model.zip`` and
@@ -8,8 +8,8 @@ training seeds (``runs/<env>_<algo>``, with ``seed*/run.json``).  For each run i
 model -- the learning curve, and writes ``policy.json`` (algo, env id, seed, frame stack, command, wall
 time, throughput, timesteps, best validation, which model) and a ``README.md`` stating the same.  Several
 runs land in ``<name>/seed<r>/``, so the ladder (:func:`gfb_agents.ladder.learned_entries`) reads them as
-one learned agent with one row per training seed.  The evaluator (:class:`gfb_agents.evaluate.LearnedPolicy`)
-reads ``policy.json``.
+one learned agent with one row per training seed.  The evaluator
+(:class:`gfb_agents.learned.evaluate.LearnedPolicy`) reads ``policy.json``.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import json
 import shutil
 from pathlib import Path
 
-from gfb_agents.evaluate import POLICIES_DIR
+from gfb_agents.learned.evaluate import POLICIES_DIR
 from gfb_env import jsonio
 from gfb_env.scripting import OneLineParser
 
@@ -88,7 +88,7 @@ def _export_run(run: Path, dest: Path, name: str, which: str) -> Path:
         f"* model selection on the validation seeds: best mean return {bv.get('mean_return', '?')} at "
         f"{bv.get('timesteps', '?')} steps (see `policy.json`)",
         "* files: `model.zip` (SB3), `vecnormalize.pkl` (observation statistics; load with "
-        "`gfb_agents.evaluate.LearnedPolicy`), `learning_curve.png`, `policy.json`",
+        "`gfb_agents.learned.evaluate.LearnedPolicy`), `learning_curve.png`, `policy.json`",
         "* benchmark results: `results/benchmark_agents.md`",
         "",
         "![learning curve](learning_curve.png)",
@@ -109,14 +109,16 @@ def export_policy(
         return _export_run(run, Path(root) / name, name, which)
     runs = sorted(d for d in run.glob("seed*") if (d / "run.json").exists()) if run.is_dir() else []
     if not runs:
-        raise FileNotFoundError(f"{run} has no run.json nor seed*/run.json (not a gfb_agents.train output)")
+        raise FileNotFoundError(
+            f"{run} has no run.json nor seed*/run.json (not a gfb_agents.learned.train output)"
+        )
     for d in runs:
         _export_run(d, Path(root) / name / d.name, name, which)
     return Path(root) / name
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = OneLineParser(prog="python -m gfb_agents.export_policy", description=__doc__.splitlines()[0])
+    ap = OneLineParser(prog="python -m gfb_agents.learned.export_policy", description=__doc__.splitlines()[0])
     ap.add_argument("run_dir")
     ap.add_argument("name", help="directory name under agents/policies, e.g. RunUpRandomized-v1_sac")
     ap.add_argument("--which", choices=("final", "best"), default="best")

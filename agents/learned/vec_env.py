@@ -6,7 +6,7 @@ dict per env, and an env that ended is reset in the same step: its last observat
 ``infos[i]["terminal_observation"]`` and ``infos[i]["TimeLimit.truncated"]`` says whether the time limit
 (not the task) ended it.  :class:`GFBSB3VecEnv` gives exactly what SB3's ``DummyVecEnv`` over
 ``gymnasium.make(id)`` copies gives (the same bits; the per-env ``Monitor`` is replaced by one
-``VecMonitor``, see :func:`gfb_agents.train.make_vec_env_for`), but steps the batch through the native
+``VecMonitor``, see :func:`gfb_agents.learned.train.make_vec_env_for`), but steps the batch through the native
 vector env's stages.
 """
 

@@ -1,6 +1,6 @@
 """Train Stable-Baselines3 agents (PPO, SAC, RecurrentPPO) on a gfb_env task, the way RL papers do.
 
-    python -m gfb_agents.train --algo {ppo,sac,recurrentppo} --env gfb_env/RunUpRandomized-v1
+    python -m gfb_agents.learned.train --algo {ppo,sac,recurrentppo} --env gfb_env/RunUpRandomized-v1
         [--seeds 0-4 | --seed R] [--timesteps N] [--n-jobs K | --scheduler ADDRESS] [--out DIR]
         [--n-envs K] [--frame-stack K] [--hyperparams FILE] [--env-kwargs JSON] [--eval-freq N]
         [--eval-episodes N] [--checkpoint-freq N] [--keep-checkpoints N] [--no-progress-bar]
@@ -63,8 +63,9 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
+from gfb_agents import HYPERPARAMS_DIR
 from gfb_agents import seeds as seeds_mod
-from gfb_agents.evaluate import algo_class
+from gfb_agents.learned.evaluate import algo_class
 from gfb_agents.seeds import VALIDATION
 from gfb_env import jsonio
 from gfb_env._threads import set_thread_defaults
@@ -84,7 +85,6 @@ __all__ = [
     "plot_learning_curve",
 ]
 
-HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
 ALGOS = ("ppo", "sac", "recurrentppo")
 #: the longest ``--frame-stack``: 64 control steps is a quarter of the longest episode (250 steps) and
 #: more history than identifying the bearing needs (the rules use a few steps); the memory grows as
@@ -181,7 +181,7 @@ VEC_ENVS = ("dummy", "subproc", "native")
 
 
 def importable_env_id(env_id: str) -> str:
-    """``env_id`` in gymnasium's ``"module:id"`` form for the gfb_env tasks (``"gfb_env:gfb_env/RunUp-v0"``).
+    """``env_id`` in gymnasium's ``"module:id"`` form for the gfb_env tasks (``"gfb_env:gfb_env/RunUp-v1"``).
 
     A worker process started by ``spawn``/``forkserver`` (SB3's ``SubprocVecEnv``) is a fresh interpreter
     that never imported gfb_env, so the plain id is unknown there (``NamespaceNotFound``) unless its main
@@ -211,7 +211,7 @@ def make_vec_env_for(
     all at once.
     ``vec_env="native"`` (default, issue 13): the task's native vector env (``gymnasium.make_vec``'s
     vector_entry_point, :class:`gfb_env.envs.vector.GFBVectorEnv`) behind SB3's API
-    (:class:`gfb_agents.vec_env.GFBSB3VecEnv`), the same bits as ``"dummy"``, with one ``VecMonitor``
+    (:class:`gfb_agents.learned.vec_env.GFBSB3VecEnv`), the same bits as ``"dummy"``, with one ``VecMonitor``
     (``native.monitor.csv``) instead of one ``Monitor`` per copy."""
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
@@ -222,7 +222,7 @@ def make_vec_env_for(
         raise ValueError(f"vec_env must be one of {VEC_ENVS}, got {vec_env!r}")
     env_kwargs = dict(env_kwargs or {})
     if vec_env == "native":
-        from gfb_agents.vec_env import GFBSB3VecEnv
+        from gfb_agents.learned.vec_env import GFBSB3VecEnv
 
         native = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point", **env_kwargs)
         # one thread for the compiled plant stage: training runs go in parallel over the seeds (one per
@@ -429,7 +429,7 @@ class _Session:
     def validate(self, model) -> dict:
         """Play the validation seeds with the current policy (deterministic, frozen normalisation) through
         the benchmark's own episode loop; keep the best model in ``best/``."""
-        from gfb_agents.evaluate import LearnedPolicy, evaluate
+        from gfb_agents.learned.evaluate import LearnedPolicy, evaluate
 
         t = time.perf_counter()
         pol = LearnedPolicy.from_model(
@@ -571,7 +571,7 @@ def _check_count(name: str, v: Any, allow_none: bool = False) -> None:
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """One training run, validated when made (every field is a ``python -m gfb_agents.train`` option).
+    """One training run, validated when made (every field is a ``python -m gfb_agents.learned.train`` option).
 
     Attributes:
         algo: ``"ppo"``, ``"sac"`` or ``"recurrentppo"`` (sb3-contrib, an LSTM policy: memory).
@@ -667,7 +667,7 @@ class TrainConfig:
 
     @property
     def task(self) -> str:
-        """``RunUp`` of ``gfb_env/RunUp-v0``."""
+        """``RunUp`` of ``gfb_env/RunUp-v1``."""
         return self.env_id.split("/")[-1].split("-v")[0]
 
     @property
@@ -914,7 +914,7 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
         "validation_seeds": sess.validation["seeds"],
         "best_validation": sess.validation["best"],
         "model": "best/model.zip is the checkpoint with the best validation mean return",
-        "command": command or "python -m gfb_agents.train " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
+        "command": command or "python -m gfb_agents.learned.train " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
         "hyperparams": {
             k: (v if isinstance(v, (int, float, str, bool)) or v is None else repr(v)) for k, v in hp.items()
         },
@@ -1098,7 +1098,7 @@ def _check_runs(config: TrainConfig, run_seeds: list[int], scheduler: str | None
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = OneLineParser(prog="python -m gfb_agents.train", description=__doc__.splitlines()[0])
+    ap = OneLineParser(prog="python -m gfb_agents.learned.train", description=__doc__.splitlines()[0])
     ap.add_argument("--algo", required=True, choices=ALGOS)
     ap.add_argument("--env", default="gfb_env/RunUpRandomized-v1", help="registered env id")
     ap.add_argument(
@@ -1173,7 +1173,7 @@ def main(argv: list[str] | None = None) -> int:
             check_output_dir(a.out, "--out")
         except ValueError as exc:
             ap.error(str(exc))
-    cmd = "python -m gfb_agents.train " + " ".join(
+    cmd = "python -m gfb_agents.learned.train " + " ".join(
         shlex.quote(x) for x in (argv if argv is not None else sys.argv[1:])
     )
     try:

@@ -1,7 +1,7 @@
 """Evaluate scripted and learned policies alike on gfb_env tasks.
 
 * :class:`LearnedPolicy` wraps a committed SB3 model (``model.zip``) and its VecNormalize statistics
-  (``vecnormalize.pkl``) behind the :class:`~gfb_agents.scripted.Policy` interface: ``predict`` normalises the
+  (``vecnormalize.pkl``) behind the :class:`~gfb_agents.policy.Policy` interface: ``predict`` normalises the
   raw observation with the saved statistics and calls the model.
 * :func:`run_episode` plays one seeded episode and returns an :class:`EpisodeResult` (return, success,
   time to target, final speed, max whirl amplitude, touchdown, the (Lambda, D_W) path).
@@ -26,7 +26,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gfb_agents.scripted import Policy
+from gfb_agents import POLICIES_DIR
+from gfb_agents.policy import Policy
 
 __all__ = [
     "LearnedPolicy",
@@ -35,15 +36,15 @@ __all__ = [
     "evaluate",
     "summarise",
     "load_learned_policies",
+    "run_dirs",
+    "run_env_id",
     "POLICIES_DIR",
     "LEARNED_ALGOS",
     "algo_class",
 ]
 
-POLICIES_DIR = Path(__file__).resolve().parent / "policies"
 
-
-#: algorithms a learned policy may come from (``gfb_agents.train --algo``)
+#: algorithms a learned policy may come from (``gfb_agents.learned.train --algo``)
 LEARNED_ALGOS = ("ppo", "sac", "recurrentppo")
 
 
@@ -69,7 +70,7 @@ def _find_meta(*dirs: Path) -> dict:
 
 
 class LearnedPolicy(Policy):
-    """An SB3 model with its observation normalisation (the files ``gfb_agents.train`` writes).
+    """An SB3 model with its observation normalisation (the files ``gfb_agents.learned.train`` writes).
 
     Args:
         path: a directory with ``model.zip`` (+ ``vecnormalize.pkl``, + ``run.json`` naming the algo and
@@ -178,7 +179,13 @@ class LearnedPolicy(Policy):
         self._stack[:, -k:] = x2
         return self._stack[0].copy() if single else self._stack.copy()
 
-    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | bool | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
         x = self.normalize(observation)
         if self.frame_stack > 1:
             x = self._stacked(x, episode_start)
@@ -189,19 +196,49 @@ class LearnedPolicy(Policy):
         return self.model.predict(x, state=state, episode_start=episode_start, deterministic=deterministic)
 
 
+def run_dirs(agent_dir: str | Path) -> list[Path]:
+    """The model directories of one learned agent's folder, sorted: the folder itself (``model.zip``) or
+    its ``seed*/`` / ``run*/`` subfolders with a model (``model.zip`` or ``best/model.zip``), one per
+    independent training seed (as ``gfb_agents.learned.train --seeds`` and ``export_policy`` write them)."""
+    d = Path(agent_dir)
+    if (d / "model.zip").exists():
+        return [d]
+    return [
+        s
+        for s in sorted(d.iterdir())
+        if s.is_dir() and ((s / "model.zip").exists() or (s / "best" / "model.zip").exists())
+    ]
+
+
+def run_env_id(run_dir: str | Path) -> str | None:
+    """The task id a model directory was trained on (its ``run.json`` or ``policy.json``), None if neither."""
+    for p in (Path(run_dir) / "run.json", Path(run_dir) / "policy.json"):
+        if p.exists():
+            return json.loads(p.read_text()).get("env_id")
+    return None
+
+
 def load_learned_policies(root: str | Path = POLICIES_DIR) -> list[LearnedPolicy]:
-    """Every committed policy under ``root`` (directories with a ``model.zip``), sorted by name.
+    """Every committed policy under ``root``: one :class:`LearnedPolicy` per model, sorted by name --
+    ``<agent>/model.zip`` (named ``<agent>``) and every training seed of a multi-seed agent
+    ``<agent>/seed<r>/`` (named ``<agent>/seed<r>``), the folders :func:`gfb_agents.ladder.learned_entries`
+    registers.
 
     Default ``root``: the policies shipped as package data (``gfb_agents/policies``).  A missing folder
     raises FileNotFoundError (a broken install or a wrong path must not read as "no policies"); an
-    existing folder without any ``<name>/model.zip`` gives ``[]``."""
+    existing folder without any model gives ``[]``."""
     root = Path(root)
     if not root.is_dir():
         raise FileNotFoundError(
-            f"no policies folder {root} (expected <name>/model.zip inside; the committed policies ship "
-            "with gfb_agents as gfb_agents/policies)"
+            f"no policies folder {root} (expected <name>/model.zip or <name>/seed<r>/model.zip inside; the "
+            "committed policies ship with gfb_agents as gfb_agents/policies)"
         )
-    return [LearnedPolicy(d) for d in sorted(root.iterdir()) if (d / "model.zip").exists()]
+    out = []
+    for d in sorted(root.iterdir()):
+        if d.is_dir():
+            for r in run_dirs(d):
+                out.append(LearnedPolicy(r, name=d.name if r == d else f"{d.name}/{r.name}"))
+    return out
 
 
 @dataclass
@@ -231,8 +268,9 @@ def run_episode(
 ) -> EpisodeResult:
     """Play one episode of ``env`` (reset with ``seed``) with ``policy`` (deterministic).
 
-    A policy with an ``observe_reset_info(info)`` method (an oracle, :class:`gfb_agents.identify.OracleAgent`)
-    is handed the reset ``info`` before its first action; every other policy sees only observations.
+    A policy with an ``observe_reset_info(info)`` method (an oracle:
+    :class:`~gfb_agents.oracles.commanded.CommandedOracle`) is handed the reset ``info`` before its first
+    action; every other policy sees only observations.
 
     ``time_to_target_s`` is the rotor time at which the speed first came within the task's tolerance of
     its target (RunUp tasks) or, for tasks without a speed target, the time of success; NaN if never.

@@ -1,0 +1,4 @@
+"""Learned agents: SB3 training (:mod:`~gfb_agents.learned.train`, ``python -m gfb_agents.learned.train``),
+the learned policy and the evaluation of any policy (:mod:`~gfb_agents.learned.evaluate`), the export of a
+trained run into the committed policies (:mod:`~gfb_agents.learned.export_policy`) and the SB3 adapter of
+the native vector env (:mod:`~gfb_agents.learned.vec_env`)."""

@@ -693,7 +693,8 @@ def main(argv: list[str] | None = None) -> int:
         "--learned",
         action="append",
         default=[],
-        help="a gfb_agents.learned.train output folder (seed*/ runs) to register as a learned agent (repeatable)",
+        help="a gfb_agents.learned.train output folder (seed*/ runs) to register as a learned agent "
+        "(repeatable)",
     )
     ap.add_argument(
         "--no-learned",

@@ -298,7 +298,8 @@ def test_a_killed_session_keeps_its_record_in_run_json(tmp_path, monkeypatch):
 
 
 def test_sigkill_then_resume_lists_both_sessions(tmp_path):
-    """Defect 14 as the issue met it: ``python -m gfb_agents.learned.train`` SIGKILLed after its first checkpoint,
+    """Defect 14 as the issue met it: ``python -m gfb_agents.learned.train`` SIGKILLed after its first
+    checkpoint,
     then the same command (with a total just past the checkpoint): ``run.json`` lists both sessions."""
     yml = _tiny_yaml(tmp_path)
     out = tmp_path / "exp"
@@ -306,7 +307,14 @@ def test_sigkill_then_resume_lists_both_sessions(tmp_path):
     argv += ["--eval-freq", "100000", "--eval-episodes", "1", "--env-kwargs", '{"max_episode_steps": 8}']
     argv += ["--out", str(out), "--no-progress-bar", "--no-tensorboard"]
     latest = out / "seed0" / "checkpoints" / "latest.json"
-    cmd = [sys.executable, "-m", "gfb_agents.learned.train", *argv, "--timesteps", "1000000"]  # never finishes
+    cmd = [
+        sys.executable,
+        "-m",
+        "gfb_agents.learned.train",
+        *argv,
+        "--timesteps",
+        "1000000",
+    ]  # never finishes
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         deadline = time.monotonic() + 120

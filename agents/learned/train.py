@@ -914,7 +914,8 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
         "validation_seeds": sess.validation["seeds"],
         "best_validation": sess.validation["best"],
         "model": "best/model.zip is the checkpoint with the best validation mean return",
-        "command": command or "python -m gfb_agents.learned.train " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
+        "command": command
+        or "python -m gfb_agents.learned.train " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
         "hyperparams": {
             k: (v if isinstance(v, (int, float, str, bool)) or v is None else repr(v)) for k, v in hp.items()
         },

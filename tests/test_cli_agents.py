@@ -17,7 +17,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from gfb_agents import train as train_mod
+from gfb_agents.learned import train as train_mod
 from gfb_agents.learned.train import MAX_FRAME_STACK, TrainConfig, load_hyperparams
 from gfb_agents.learned.train import main as train_main
 from gfb_experiments.benchmark_agents import main as bench_main

@@ -155,7 +155,7 @@ def _bench(tmp_path: Path, *extra: str) -> list[str]:
         (["--out", PROC_OUT], f"--out {PROC_OUT}: cannot write"),
         # defect 8
         (["--agents", "bogus"], "--agents: unknown agent 'bogus'; agents of the tasks: map_informed_v1"),
-        (["--agents", "map_informed"], "'map_informed' plays none of the tasks gfb_env/RunUp-v1"),
+        (["--agents", "recovery"], "'recovery' plays none of the tasks gfb_env/RunUp-v1"),
         (["--agents", ""], "--agents names nothing"),
         (["--agents", "naive,,oracle_v1"], "--agents has an empty name"),
         (["--tasks", ""], "--tasks names nothing"),
@@ -299,8 +299,8 @@ def test_a_killed_session_keeps_its_record_in_run_json(tmp_path, monkeypatch):
 
 def test_sigkill_then_resume_lists_both_sessions(tmp_path):
     """Defect 14 as the issue met it: ``python -m gfb_agents.learned.train`` SIGKILLed after its first
-    checkpoint,
-    then the same command (with a total just past the checkpoint): ``run.json`` lists both sessions."""
+    checkpoint, then the same command (with a total just past the checkpoint): ``run.json`` lists both
+    sessions."""
     yml = _tiny_yaml(tmp_path)
     out = tmp_path / "exp"
     argv = ["--algo", "ppo", "--env", ENV, "--hyperparams", str(yml), "--checkpoint-freq", "32"]

@@ -16,7 +16,7 @@ Stability uses :mod:`gfb_env.analysis.task_constants`.  Run::
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python -m gfb_experiments.env_task_constants
 
 (one BLAS thread: the dense eigenvalue solves oversubscribe a shared machine otherwise; ~3 min on
-2 shared cores: 31x7 20 s, 79x7 50 s, the randomized table 105 s).  `tests/test_task_constants.py`
+2 shared cores: 31x7 20 s, 79x7 50 s, the randomized table 105 s).  `tests/analysis/test_task_constants.py`
 recomputes its cheap parts and compares.
 """
 

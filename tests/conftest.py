@@ -38,3 +38,21 @@ def assert_refused_at_once(main, argv: list[str], option: str, fragment: str, ca
     assert lines[0].startswith(f"gfb {argv[0]}: error:") and option in lines[0] and fragment in lines[0]
     assert stdout == "" and not out.exists()
     assert time.perf_counter() - t0 < 20
+
+
+def same_value(x, y) -> bool:
+    """Exactly the same value, recursively (dicts, tuples, arrays with their dtype and shape, NaN == NaN):
+    what "bit for bit" means for observations and infos."""
+    if isinstance(x, dict):
+        return isinstance(y, dict) and x.keys() == y.keys() and all(same_value(x[k], y[k]) for k in x)
+    if isinstance(x, np.ndarray):
+        if not (isinstance(y, np.ndarray) and x.dtype == y.dtype and x.shape == y.shape):
+            return False
+        if x.dtype == object:
+            return all(same_value(p, q) for p, q in zip(x.ravel(), y.ravel(), strict=True))
+        return np.array_equal(x, y, equal_nan=x.dtype.kind in "fc")
+    if isinstance(x, tuple):
+        return isinstance(y, tuple) and len(x) == len(y) and all(same_value(p, q) for p, q in zip(x, y))
+    if isinstance(x, float) and np.isnan(x):
+        return isinstance(y, float) and np.isnan(y)
+    return type(x) is type(y) and x == y

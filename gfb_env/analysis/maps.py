@@ -10,7 +10,7 @@
 * :func:`load_hysteresis_map` / :func:`optimal_foil_damping` read the maps shipped with the package
   (``gfb_env/data/hysteresis_map.csv``, ``gfb_env/data/stability_map.csv``: copies of the committed
   ``results/hysteresis_map/hysteresis_map.csv`` and ``results/fig4_stability_map/stability_map.csv``,
-  which ``tests/test_package_data.py`` keeps identical) or an explicit ``path``.  Library code never
+  which ``tests/install/test_package_data.py`` keeps identical) or an explicit ``path``.  Library code never
   reads ``results/`` at run time: an installed package has no such folder.
 """
 

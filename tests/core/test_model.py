@@ -2,11 +2,11 @@ import time
 
 import numpy as np
 import pytest
+from conftest import random_admissible_state
 
 from gfb_env import _kernels as K
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import GFBModel, Grid, Structure
-from tests.conftest import random_admissible_state
 
 STRUCTURES = [s.value for s in Structure]
 

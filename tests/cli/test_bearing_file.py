@@ -11,7 +11,7 @@ from gfb_env.cli import main
 from gfb_env.model import GFBModel
 from gfb_env.params import BearingParameters
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "bearings"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "bearings"
 TABLE1 = EXAMPLES / "table1.toml"
 SMALL = EXAMPLES / "small_turbocompressor.toml"
 

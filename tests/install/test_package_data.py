@@ -1,7 +1,7 @@
 """Package data: what the library reads at run time ships with it, and missing data is an error.
 
-(The wheel itself is tested in ``tests/test_wheel.py``; the task constants' reproduction in
-``tests/test_task_constants.py``.)"""
+(The wheel itself is tested in ``tests/install/test_wheel.py``; the task constants' reproduction in
+``tests/analysis/test_task_constants.py``.)"""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from gfb_env.envs import _data
 from gfb_env.envs._data import NOMINAL_BEARING, TaskConstantsWarning, nominal_task_constants
 from gfb_env.model import Grid
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.parametrize(

@@ -18,7 +18,7 @@ import gfb_env
 from gfb_env.cli import COMMAND_MODULES, build_parser, main
 from gfb_env.params import MAX_BEARING_FILE_BYTES, BearingParameters, shipped_bearing_names
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 CLI = REPO / "gfb_env" / "cli"
 
 

@@ -11,7 +11,7 @@ from conftest import assert_refused_at_once
 
 from gfb_env.cli import main
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "bearings"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "bearings"
 SMALL = EXAMPLES / "small_turbocompressor.toml"
 
 

@@ -8,14 +8,14 @@ import json
 
 import numpy as np
 import pytest
+from conftest import same_value
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor, VecNormalize
+from test_agents import _tiny_yaml
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_agents.learned.train import TrainConfig, make_vec_env_for, train
 from gfb_agents.learned.vec_env import GFBSB3VecEnv
-from tests.test_agents import _tiny_yaml
-from tests.test_vector_env import _same_value
 
 FAST = {"control_interval": 20.0}
 
@@ -32,7 +32,7 @@ def test_adapter_is_dummy_vec_env_bit_for_bit(env_id):
     dummy = make_vec_env(env_id, n_envs=n, seed=5, env_kwargs=kw, vec_env_cls=DummyVecEnv)
     assert isinstance(native, VecMonitor) and isinstance(native.venv, GFBSB3VecEnv)
     assert np.array_equal(native.reset(), dummy.reset())
-    assert all(_same_value(p, q) for p, q in zip(native.venv.reset_infos, dummy.reset_infos, strict=True))
+    assert all(same_value(p, q) for p, q in zip(native.venv.reset_infos, dummy.reset_infos, strict=True))
     rng = np.random.default_rng(0)
     ended = 0
     for _ in range(7):  # two autoresets by the time limit per env
@@ -49,7 +49,7 @@ def test_adapter_is_dummy_vec_env_bit_for_bit(env_id):
                 {k: v for k, v in q.items() if k != "episode"},
             )
             assert p.keys() == q.keys()
-            bad = [k for k in p if not _same_value(p[k], q[k])]
+            bad = [k for k in p if not same_value(p[k], q[k])]
             assert not bad, bad
         ended += int(d1.sum())
         if d1.any():

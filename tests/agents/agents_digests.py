@@ -8,8 +8,8 @@ agents' public interface only (the ladder builds it; ``reset``, the oracle's res
 actions, its rewards and its end (terminated / truncated / reason).  A manual before/after check (like
 the env cases of ``integrator_digests.py``)::
 
-    python tests/agents_digests.py write /tmp/agents_v1.json
-    python tests/agents_digests.py check /tmp/agents_v1.json
+    python tests/agents/agents_digests.py write /tmp/agents_v1.json
+    python tests/agents/agents_digests.py check /tmp/agents_v1.json
 
 The digests are of float64 bytes: they hold on one machine and numba/LLVM version.
 """

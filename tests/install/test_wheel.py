@@ -23,7 +23,7 @@ import venv
 import zipfile
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 #: files the code reads at run time, which must be in the wheel
 DATA_FILES = (

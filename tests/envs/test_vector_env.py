@@ -7,6 +7,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import same_value
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
@@ -39,22 +40,6 @@ def _pair(env_id: str, mode: AutoresetMode = AutoresetMode.NEXT_STEP, n: int = N
     return native, sync
 
 
-def _same_value(x, y) -> bool:
-    if isinstance(x, dict):
-        return isinstance(y, dict) and x.keys() == y.keys() and all(_same_value(x[k], y[k]) for k in x)
-    if isinstance(x, np.ndarray):
-        if not (isinstance(y, np.ndarray) and x.dtype == y.dtype and x.shape == y.shape):
-            return False
-        if x.dtype == object:
-            return all(_same_value(p, q) for p, q in zip(x.ravel(), y.ravel(), strict=True))
-        return np.array_equal(x, y, equal_nan=x.dtype.kind in "fc")
-    if isinstance(x, tuple):
-        return isinstance(y, tuple) and len(x) == len(y) and all(_same_value(p, q) for p, q in zip(x, y))
-    if isinstance(x, float) and np.isnan(x):
-        return isinstance(y, float) and np.isnan(y)
-    return type(x) is type(y) and x == y
-
-
 def _assert_same(a: tuple, b: tuple) -> None:
     """Two (obs, reward, terminated, truncated, infos) or (obs, infos) results, bit for bit."""
     assert len(a) == len(b)
@@ -62,7 +47,7 @@ def _assert_same(a: tuple, b: tuple) -> None:
         assert x.dtype == y.dtype and x.shape == y.shape and np.array_equal(x, y)
     ia, ib = a[-1], b[-1]
     assert ia.keys() == ib.keys()
-    bad = [k for k in ia if not _same_value(ia[k], ib[k])]
+    bad = [k for k in ia if not same_value(ia[k], ib[k])]
     assert not bad, f"infos differ in {bad}"
 
 

@@ -3,28 +3,29 @@
 Each case runs the integrator (or the v1 envs) and returns a :class:`CaseResult`:
 
 - ``digests``: everything it produced (final state, trajectory, statistics, extremes, events, every
-  info entry) as one SHA-256 digest per item, of the float64 bytes.  They prove that a refactoring keeps
-  every result bit for bit, but only on the CPU and numba/LLVM/numpy versions that recorded them (another
-  CPU gives other last bits): ``tests/data/integrator_digests.json`` holds one digest set per platform.
+  info entry) as one SHA-256 digest per item, of the float64 bytes.  They prove that a refactoring
+  keeps every result bit for bit, but only on the CPU and numba/LLVM/numpy versions that recorded them
+  (another CPU gives other last bits): ``data/integrator_digests.json`` (beside this file) holds one
+  digest set per platform.
 - ``golden``: a few numbers per item (the final state, samples of the trajectory, the extremes, the
-  step counts, observations and rewards at a few steps) in ``tests/data/integrator_golden.json``, each
-  with a tolerance that holds across CPUs.  The tolerance is measured when the values are written: the
+  step counts, observations and rewards at a few steps) in ``data/integrator_golden.json``, each with
+  a tolerance that holds across CPUs.  The tolerance is measured when the values are written: the
   last-bit differences of another CPU are modelled by relative perturbations of every start state
   (:data:`PERTURBATIONS`), and each item may deviate :data:`TOLERANCE_FACTOR` times as much as they
   moved it (at least a floor; the golden file keeps the measured deviation beside the tolerance).
 
-``tests/test_integrator_digests.py`` checks both in the default suite (exact digests where this
-platform recorded a set, the golden values everywhere).  Commands::
+``test_integrator_digests.py`` (beside this file) checks both in the default suite (exact digests
+where this platform recorded a set, the golden values everywhere).  Commands, from ``tests/integrator``::
 
-    python tests/integrator_digests.py write  tests/data [--digests-only]   # golden values, digests
-    python tests/integrator_digests.py check  tests/data/integrator_digests.json [--envs]
-    python tests/integrator_digests.py check  /work/baseline/integrator.json   # one platform's flat file
+    python integrator_digests.py write  data [--digests-only]               # golden values, digests
+    python integrator_digests.py check  data/integrator_digests.json [--envs]
+    python integrator_digests.py check  /work/baseline/integrator.json      # one platform's flat file
 
 ``check`` takes a digest file of either shape (one platform's flat ``{case: {item: digest}}``, or the
-per-platform list of ``tests/data``, of which it uses this platform's set); ``--envs``: the env case
-only, else the integrator cases.  Write the golden values from the code before a refactoring (they are
-its reference); ``write tests/data --digests-only`` adds (or replaces) this platform's digests and
-leaves the golden values (do it with code that passes the golden test).
+per-platform list of ``data``, of which it uses this platform's set); ``--envs``: the env case only,
+else the integrator cases.  Write the golden values from the code before a refactoring (they are its
+reference); ``write data --digests-only`` adds (or replaces) this platform's digests and leaves the
+golden values (do it with code that passes the golden test).
 """
 
 from __future__ import annotations

@@ -1,10 +1,11 @@
 """The integrator's and the v1 envs' results against values recorded from the code before issue 18.
 
-Two checks per case (see ``tests/integrator_digests.py``): the golden values (final states, trajectory
-samples, extremes, step counts, observations and rewards) within tolerances measured per item, on every
-machine; and the exact digests of everything the case produced, bit for bit, where this platform (CPU,
-numba, llvmlite, numpy) recorded a digest set (``tests/data/integrator_digests.json``: one set per
-platform; elsewhere that check skips and the golden one still pins the results).
+Two checks per case (see ``integrator_digests.py`` beside this file): the golden values (final
+states, trajectory samples, extremes, step counts, observations and rewards) within tolerances
+measured per item, on every machine; and the exact digests of everything the case produced, bit for
+bit, where this platform (CPU, numba, llvmlite, numpy) recorded a digest set
+(``data/integrator_digests.json``: one set per platform; elsewhere that check skips and the golden one
+still pins the results).
 """
 
 import json

@@ -58,6 +58,7 @@ from gfb_agents.seeds import MIN_TEST_EPISODES, SPLITS, split_seeds
 from gfb_env import jsonio
 from gfb_env.envs import ENV_IDS
 from gfb_env.scripting import OneLineParser, check_output_dir
+from gfb_env.sweeps import check_scheduler
 from gfb_experiments.benchmark_stats import (
     DEFAULT_REPS,
     interval_estimates,
@@ -624,41 +625,6 @@ def write_outputs(
 
 
 # ------------------------------------------------------------------------------------------- CLI
-#: seconds to wait for a Dask scheduler's TCP port before refusing ``--scheduler`` (Dask waits 30 s)
-SCHEDULER_CONNECT_TIMEOUT_S = 5.0
-
-
-def _check_scheduler(address: str, timeout: float = SCHEDULER_CONNECT_TIMEOUT_S) -> None:
-    """ValueError (one line) unless something accepts a TCP connection at the Dask scheduler
-    ``address`` (``tcp://host:port``, ``tls://host:port`` or ``host:port``) within ``timeout`` s.
-
-    Dask's client would retry for 30 s (``distributed.comm.timeouts.connect``) and then raise with a
-    traceback; other schemes (``inproc://``, ``ucx://``, ``ws://``) are left to Dask.  (The same check as
-    ``python -m gfb_agents.learned.train``'s; its owner would be ``gfb_env.sweeps``.)"""
-    import socket
-    from urllib.parse import urlsplit
-
-    scheme, sep, rest = address.partition("://")
-    if not sep:
-        scheme, rest = "tcp", address
-    if scheme not in ("tcp", "tls"):
-        return
-    try:
-        u = urlsplit("//" + rest)
-        host, port = u.hostname, u.port
-    except ValueError as exc:
-        raise ValueError(f"--scheduler {address!r}: {exc}") from None
-    if not host or port is None:
-        raise ValueError(f"--scheduler {address!r}: expected tcp://host:port")
-    try:
-        socket.create_connection((host, port), timeout=timeout).close()
-    except OSError as exc:
-        why = exc.strerror or str(exc) or type(exc).__name__
-        raise ValueError(
-            f"--scheduler {address}: no Dask scheduler answers there within {timeout:g} s ({why})"
-        ) from None
-
-
 def _names(ap, option: str, text: str) -> list[str]:
     """The comma-separated names of ``option``; an empty list or an empty name is a usage error (an
     empty ``--agents`` / ``--tasks`` used to mean "all")."""
@@ -760,7 +726,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--no-learned and --policies exclude each other")
     if a.scheduler is not None:
         try:
-            _check_scheduler(a.scheduler)
+            check_scheduler(a.scheduler)
         except ValueError as exc:
             ap.error(str(exc))
     with ladder_mod.scoped():

@@ -1,7 +1,7 @@
 """The training record of the committed learned policies: one row per training run.
 
 Reads ``policy.json`` of every ``agents/policies/<name>/seed<r>/`` (or ``<name>/``) folder written by
-``python -m gfb_agents.learned.export_policy`` and prints a Markdown table (and, with ``--out``, a CSV) of the
+``python -m gfb_experiments.export_policy`` and prints a Markdown table (and, with ``--out``, a CSV) of the
 algorithm, task, training seed, environment steps, wall time, training throughput (env steps/s on this
 machine, validation included and excluded) and the validation result that selected the model.  The
 numbers are those ``gfb_agents.learned.train`` measured while training (``run.json``); nothing is re-run::

@@ -9,7 +9,7 @@ undesirable self-excited vibrations in gas foil bearing rotor systems".
 # No thread settings here: a library does not change its host's os.environ.  Our matrices are small
 # (n ~ 500) and OpenBLAS's spinning threads collapse on shared cores (a 472 x 472 eig took 10 s with 2
 # threads on a loaded 2-core machine, 0.2 s with 1), so the entry points set single-threaded BLAS
-# defaults (gfb_env._threads): the `gfb` CLI and `python -m gfb_agents.learned.train` for the worker processes
+# defaults (gfb_env._threads): the `gfb` CLI and `python -m gfb_experiments.train` for the worker processes
 # they start, gfb_experiments before numpy loads; the Makefile exports the same variables.
 
 # Registers gfb_env/RunUp-v1, gfb_env/RunUpRandomized-v1, gfb_env/WhirlRecovery-v1 with gymnasium (and

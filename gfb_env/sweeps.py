@@ -178,3 +178,37 @@ def run_sweep(
         if fh is not None:
             fh.close()
     return [done[point_key(p)] for p in pts]
+
+
+#: seconds to wait for a Dask scheduler's TCP port before refusing it (Dask's own client waits 30 s)
+SCHEDULER_CONNECT_TIMEOUT_S = 5.0
+
+
+def check_scheduler(address: str, timeout: float = SCHEDULER_CONNECT_TIMEOUT_S) -> None:
+    """ValueError (one line) unless something accepts a TCP connection at the Dask scheduler
+    ``address`` (``tcp://host:port``, ``tls://host:port`` or ``host:port``) within ``timeout`` s.
+
+    Dask's client would retry for 30 s (``distributed.comm.timeouts.connect``) and then raise with a
+    traceback; other schemes (``inproc://``, ``ucx://``, ``ws://``) are left to Dask."""
+    import socket
+    from urllib.parse import urlsplit
+
+    scheme, sep, rest = address.partition("://")
+    if not sep:
+        scheme, rest = "tcp", address
+    if scheme not in ("tcp", "tls"):
+        return
+    try:
+        u = urlsplit("//" + rest)
+        host, port = u.hostname, u.port
+    except ValueError as exc:
+        raise ValueError(f"--scheduler {address!r}: {exc}") from None
+    if not host or port is None:
+        raise ValueError(f"--scheduler {address!r}: expected tcp://host:port")
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        why = exc.strerror or str(exc) or type(exc).__name__
+        raise ValueError(
+            f"--scheduler {address}: no Dask scheduler answers there within {timeout:g} s ({why})"
+        ) from None

@@ -1,6 +1,6 @@
 """Copy trained policies from a training folder (``runs/...``, gitignored) into ``agents/policies/<name>/``.
 
-    python -m gfb_agents.learned.export_policy RUN_DIR NAME [--which {best,final}]
+    python -m gfb_experiments.export_policy RUN_DIR NAME [--which {best,final}]   # the command line
 
 ``RUN_DIR`` is one run (``runs/<env>_<algo>/seed<r>``, with ``run.json``) or an experiment of several
 training seeds (``runs/<env>_<algo>``, with ``seed*/run.json``).  For each run it copies ``model.zip`` and
@@ -20,7 +20,6 @@ from pathlib import Path
 
 from gfb_agents.learned.evaluate import POLICIES_DIR
 from gfb_env import jsonio
-from gfb_env.scripting import OneLineParser
 
 __all__ = ["export_policy"]
 
@@ -115,20 +114,3 @@ def export_policy(
     for d in runs:
         _export_run(d, Path(root) / name / d.name, name, which)
     return Path(root) / name
-
-
-def main(argv: list[str] | None = None) -> int:
-    ap = OneLineParser(prog="python -m gfb_agents.learned.export_policy", description=__doc__.splitlines()[0])
-    ap.add_argument("run_dir")
-    ap.add_argument("name", help="directory name under agents/policies, e.g. RunUpRandomized-v1_sac")
-    ap.add_argument("--which", choices=("final", "best"), default="best")
-    a = ap.parse_args(argv)
-    try:
-        print(export_policy(a.run_dir, a.name, a.which))
-    except (FileNotFoundError, ValueError) as exc:
-        ap.error(str(exc))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,10 +1,8 @@
 """Train Stable-Baselines3 agents (PPO, SAC, RecurrentPPO) on a gfb_env task, the way RL papers do.
 
-    python -m gfb_agents.learned.train --algo {ppo,sac,recurrentppo} --env gfb_env/RunUpRandomized-v1
-        [--seeds 0-4 | --seed R] [--timesteps N] [--n-jobs K | --scheduler ADDRESS] [--out DIR]
-        [--n-envs K] [--frame-stack K] [--hyperparams FILE] [--env-kwargs JSON] [--eval-freq N]
-        [--eval-episodes N] [--checkpoint-freq N] [--keep-checkpoints N] [--no-progress-bar]
-        [--vec-env {dummy,subproc,native}]
+The library half (rl-zoo3's ``ExperimentManager`` apart from its CLI): :class:`TrainConfig`,
+:func:`train`, :func:`train_seeds`, :func:`check_runs`.  The command line is
+``python -m gfb_experiments.train`` (:mod:`gfb_experiments.train`).
 
 Hyperparameters come from ``agents/hyperparams/<algo>.yml`` in rl-zoo3's layout (top-level keys are env
 ids; besides the algorithm's keyword arguments the zoo's ``n_timesteps``, ``policy``, ``n_envs`` and
@@ -69,7 +67,8 @@ from gfb_agents.learned.evaluate import algo_class
 from gfb_agents.seeds import VALIDATION
 from gfb_env import jsonio
 from gfb_env._threads import set_thread_defaults
-from gfb_env.scripting import OneLineParser, check_output_dir
+from gfb_env.scripting import check_output_dir
+from gfb_env.sweeps import check_scheduler
 
 __all__ = [
     "ALGOS",
@@ -81,7 +80,7 @@ __all__ = [
     "load_hyperparams",
     "make_vec_env_for",
     "train",
-    "main",
+    "check_runs",
     "plot_learning_curve",
 ]
 
@@ -91,8 +90,6 @@ ALGOS = ("ppo", "sac", "recurrentppo")
 #: ``n_steps * n_envs * k * obs_dim * 4`` bytes in PPO's rollout buffer (6.9 GiB at k = 100 000, 4.7 MB
 #: at 64).  Longer memory: ``--algo recurrentppo``.
 MAX_FRAME_STACK = 64
-#: seconds to wait for a Dask scheduler's TCP port before refusing ``--scheduler`` (Dask waits 30 s)
-SCHEDULER_CONNECT_TIMEOUT_S = 5.0
 #: keys of the zoo files that are not algorithm keyword arguments
 ZOO_KEYS = ("n_timesteps", "policy", "n_envs", "normalize", "env_wrapper", "frame_stack", "callback")
 
@@ -571,7 +568,7 @@ def _check_count(name: str, v: Any, allow_none: bool = False) -> None:
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """One training run, validated when made (every field is a ``python -m gfb_agents.learned.train`` option).
+    """One training run, validated when made (every field is a ``python -m gfb_experiments.train`` option).
 
     Attributes:
         algo: ``"ppo"``, ``"sac"`` or ``"recurrentppo"`` (sb3-contrib, an LSTM policy: memory).
@@ -915,7 +912,7 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
         "best_validation": sess.validation["best"],
         "model": "best/model.zip is the checkpoint with the best validation mean return",
         "command": command
-        or "python -m gfb_agents.learned.train " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
+        or "python -m gfb_experiments.train " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
         "hyperparams": {
             k: (v if isinstance(v, (int, float, str, bool)) or v is None else repr(v)) for k, v in hp.items()
         },
@@ -964,23 +961,6 @@ def train_seeds(
             d["progress_bar"] = False  # interleaved bars from workers are unreadable; the log lines stay
         points.append(d)
     return run_sweep(_train_point, points, n_jobs=n_jobs, scheduler=scheduler, desc="training runs")
-
-
-def _parse_seeds(text: str) -> list[int]:
-    """``"0-4"`` or ``"0,1,7"`` -> a sorted list of distinct run indices."""
-    out: set[int] = set()
-    try:
-        for part in text.split(","):
-            if "-" in part:
-                a, b = part.split("-", 1)
-                out.update(range(int(a), int(b) + 1))
-            else:
-                out.add(int(part))
-    except ValueError:
-        raise ValueError(f"--seeds must look like 0-4 or 0,1,7, got {text!r}") from None
-    if not out or min(out) < 0 or max(out) >= seeds_mod.MAX_TRAIN_RUNS:
-        raise ValueError(f"--seeds must name runs in [0, {seeds_mod.MAX_TRAIN_RUNS}), got {text!r}")
-    return sorted(out)
 
 
 def plot_learning_curve(run_dir: str | Path, path: str | Path, title: str = "") -> Path:
@@ -1037,36 +1017,6 @@ def plot_learning_curve(run_dir: str | Path, path: str | Path, title: str = "") 
     return Path(path)
 
 
-def _check_scheduler(address: str, timeout: float = SCHEDULER_CONNECT_TIMEOUT_S) -> None:
-    """ValueError (one line) unless something accepts a TCP connection at the Dask scheduler
-    ``address`` (``tcp://host:port``, ``tls://host:port`` or ``host:port``) within ``timeout`` s.
-
-    Dask's client would retry for 30 s (``distributed.comm.timeouts.connect``) and then raise with a
-    traceback; other schemes (``inproc://``, ``ucx://``, ``ws://``) are left to Dask."""
-    import socket
-    from urllib.parse import urlsplit
-
-    scheme, sep, rest = address.partition("://")
-    if not sep:
-        scheme, rest = "tcp", address
-    if scheme not in ("tcp", "tls"):
-        return
-    try:
-        u = urlsplit("//" + rest)
-        host, port = u.hostname, u.port
-    except ValueError as exc:
-        raise ValueError(f"--scheduler {address!r}: {exc}") from None
-    if not host or port is None:
-        raise ValueError(f"--scheduler {address!r}: expected tcp://host:port")
-    try:
-        socket.create_connection((host, port), timeout=timeout).close()
-    except OSError as exc:
-        why = exc.strerror or str(exc) or type(exc).__name__
-        raise ValueError(
-            f"--scheduler {address}: no Dask scheduler answers there within {timeout:g} s ({why})"
-        ) from None
-
-
 def _check_env_kwargs(c: TrainConfig) -> None:
     """ValueError (one line) unless ``c.env_kwargs`` build the task the way the run will: its training
     envs (``gymnasium.make_vec`` for the native vector env) and the validation env (``gymnasium.make``)."""
@@ -1084,7 +1034,7 @@ def _check_env_kwargs(c: TrainConfig) -> None:
         env.close()
 
 
-def _check_runs(config: TrainConfig, run_seeds: list[int], scheduler: str | None = None) -> None:
+def check_runs(config: TrainConfig, run_seeds: list[int], scheduler: str | None = None) -> None:
     """Refuse (ValueError, one line) what would make a run of the sweep fail after it started: the
     hyperparameters, the env kwargs, a run folder holding a run with other settings, an unwritable output
     folder (created here), a Dask scheduler that does not answer."""
@@ -1094,135 +1044,5 @@ def _check_runs(config: TrainConfig, run_seeds: list[int], scheduler: str | None
         _check_same_settings(TrainConfig(**{**config.as_dict(), "seed": r, "out": root / f"seed{r}"}), n_envs)
     _check_env_kwargs(config)
     if scheduler is not None:
-        _check_scheduler(scheduler)
+        check_scheduler(scheduler)
     check_output_dir(str(root), "--out")
-
-
-def main(argv: list[str] | None = None) -> int:
-    ap = OneLineParser(prog="python -m gfb_agents.learned.train", description=__doc__.splitlines()[0])
-    ap.add_argument("--algo", required=True, choices=ALGOS)
-    ap.add_argument("--env", default="gfb_env/RunUpRandomized-v1", help="registered env id")
-    ap.add_argument(
-        "--timesteps",
-        type=int,
-        default=None,
-        help="total env steps per run (default: n_timesteps of the YAML)",
-    )
-    ap.add_argument("--seed", type=int, default=None, help="one training run (default 0)")
-    ap.add_argument(
-        "--seeds", default=None, help="several independent runs, e.g. 0-4 (each in <out>/seed<r>)"
-    )
-    ap.add_argument("--n-jobs", type=int, default=1, help="runs trained in parallel on this machine")
-    ap.add_argument(
-        "--scheduler", default=None, help="Dask scheduler address: train the runs on that cluster"
-    )
-    ap.add_argument("--n-envs", type=int, default=None, help="parallel envs (default: the YAML's n_envs)")
-    ap.add_argument(
-        "--out", default=None, help="experiment directory (default runs/<env>_<algo>); run r in <out>/seed<r>"
-    )
-    ap.add_argument(
-        "--hyperparams", default=None, help="zoo-style YAML (default agents/hyperparams/<algo>.yml)"
-    )
-    ap.add_argument("--env-kwargs", default=None, help="JSON dict of keyword arguments for gymnasium.make")
-    ap.add_argument("--eval-freq", type=int, default=20_000, help="env steps between validations")
-    ap.add_argument("--eval-episodes", type=int, default=20, help="validation seeds per validation")
-    ap.add_argument("--checkpoint-freq", type=int, default=20_000, help="env steps between checkpoints")
-    ap.add_argument("--keep-checkpoints", type=int, default=2, help="checkpoints kept on disk")
-    ap.add_argument(
-        "--frame-stack",
-        type=int,
-        default=1,
-        help=f"stack the last k observations (memory; PPO only, k <= {MAX_FRAME_STACK})",
-    )
-    ap.add_argument("--no-progress-bar", action="store_true")
-    ap.add_argument("--no-tensorboard", action="store_true")
-    ap.add_argument("--verbose", type=int, default=0)
-    ap.add_argument(
-        "--torch-threads",
-        type=int,
-        default=1,
-        help="torch CPU threads (default 1: the env is the bottleneck and cores are shared)",
-    )
-    ap.add_argument(
-        "--vec-env",
-        choices=VEC_ENVS,
-        default="native",
-        help="training envs in this process (dummy), one worker process each (subproc), or the task's "
-        "native vector env (native)",
-    )
-    a = ap.parse_args(argv)
-    set_thread_defaults()  # single-threaded BLAS in the subproc workers (see gfb_env._threads)
-    env_kwargs = None
-    if a.env_kwargs:
-        try:
-            env_kwargs = json.loads(a.env_kwargs)
-        except json.JSONDecodeError as exc:
-            ap.error(f"--env-kwargs is not valid JSON: {exc}")
-        if not isinstance(env_kwargs, dict):
-            ap.error("--env-kwargs must be a JSON object")
-    if a.seed is not None and a.seeds is not None:
-        ap.error("--seed and --seeds exclude each other")
-    try:
-        run_seeds = _parse_seeds(a.seeds) if a.seeds is not None else [0 if a.seed is None else a.seed]
-    except ValueError as exc:
-        ap.error(str(exc))
-    cpus = os.cpu_count() or 1
-    if a.scheduler is None and not (a.n_jobs == -1 or 1 <= a.n_jobs <= cpus):
-        ap.error(f"--n-jobs must be -1 or lie in [1, {cpus}] (this machine's cores), got {a.n_jobs}")
-    if a.out is not None:
-        try:  # before any training: an unwritable --out fails now, not at the first checkpoint
-            check_output_dir(a.out, "--out")
-        except ValueError as exc:
-            ap.error(str(exc))
-    cmd = "python -m gfb_agents.learned.train " + " ".join(
-        shlex.quote(x) for x in (argv if argv is not None else sys.argv[1:])
-    )
-    try:
-        config = TrainConfig(
-            algo=a.algo,
-            env_id=a.env,
-            timesteps=a.timesteps,
-            seed=run_seeds[0],
-            n_envs=a.n_envs,
-            out=a.out,
-            hyperparams=a.hyperparams,
-            env_kwargs=env_kwargs,
-            eval_freq=a.eval_freq,
-            eval_episodes=a.eval_episodes,
-            checkpoint_freq=a.checkpoint_freq,
-            keep_checkpoints=a.keep_checkpoints,
-            frame_stack=a.frame_stack,
-            progress_bar=not a.no_progress_bar,
-            tensorboard=not a.no_tensorboard,
-            verbose=a.verbose,
-            torch_threads=a.torch_threads,
-            vec_env=a.vec_env,
-        )
-        _check_runs(config, run_seeds, a.scheduler)  # everything a run would fail on, before any starts
-        recs = train_seeds(
-            config,
-            run_seeds,
-            n_jobs=a.n_jobs,
-            scheduler=a.scheduler,
-            command=cmd,
-        )
-    except (ValueError, FileNotFoundError) as exc:
-        ap.error(str(exc))
-    failed = 0
-    for rec in recs:
-        if rec["error"] is not None:
-            failed += 1
-            print(f"run {rec['point']['seed']}: FAILED: {rec['error']}", file=sys.stderr)
-        else:
-            r = rec["result"]
-            best = r["best_validation"] or {}
-            print(
-                f"run {r['seed']}: {r['out']} {r['timesteps']} steps, {r['wall_time_s']} s, "
-                f"{r['env_steps_per_s']} steps/s, best validation {best.get('mean_return')} at "
-                f"{best.get('timesteps')}"
-            )
-    return 1 if failed else 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

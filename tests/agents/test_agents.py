@@ -14,10 +14,10 @@ from gfb_agents import seeds
 from gfb_agents.ladder import V1_TASKS, ladder_for
 from gfb_agents.learned.evaluate import LearnedPolicy, run_episode, summarise
 from gfb_agents.learned.train import TrainConfig, load_hyperparams, train
-from gfb_agents.learned.train import main as train_main
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.policy import ControlSpec
 from gfb_agents.rules.map_informed import MapInformedAgent
+from gfb_experiments.train import main as train_main
 
 TASKS = V1_TASKS  # the task list has one owner
 SHORT = 25  # control steps per test episode

@@ -12,6 +12,10 @@ undesirable self-excited vibrations in gas foil bearing rotor systems".
 # defaults (gfb_env._threads): the `gfb` CLI and `python -m gfb_experiments.train` for the worker processes
 # they start, gfb_experiments before numpy loads; the Makefile exports the same variables.
 
+# Before any compiled function loads its on-disk cache: recompile everything if one of the files compiled
+# code is built from changed since (numba's cache checks only each function's own file; gfb_env._numba_cache).
+import gfb_env._numba_cache  # noqa: F401  (its import does it)
+
 # Registers gfb_env/RunUp-v1, gfb_env/RunUpRandomized-v1, gfb_env/WhirlRecovery-v1 with gymnasium (and
 # the retired -v0 ids, which refuse with the id to use).
 import gfb_env.envs  # noqa: F401

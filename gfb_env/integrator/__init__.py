@@ -52,10 +52,9 @@ predictor, Newton, error estimate, dense output, extremes, touchdown, forcing),
 public interface; import them from here.
 
 A contributor's note: numba's on-disk cache (``cache=True``) checks only the file of each compiled
-function, not the files of the functions it inlines or calls.  After editing compiled code in
-``stages.py``, ``controller.py``, ``arguments.py``, :mod:`gfb_env._kernels` or :mod:`gfb_env.forcing`,
-delete the ``__pycache__`` folders of ``gfb_env`` (or touch ``stages.py`` and ``batch.py``), or the
-loop and the batch kernels may run their previously cached machine code.
+function, not the files of the functions it inlines or calls; :mod:`gfb_env._numba_cache` therefore
+drops every cache of the compiled sources when any of them changed (at ``import gfb_env``).  A new
+file with compiled code goes into its ``COMPILED_SOURCES``.
 """
 
 from gfb_env.equilibrium import EquilibriumError, find_equilibrium  # re-exported (moved there)

@@ -266,6 +266,7 @@ class RunUpRandomizedEnv(RunUpEnv):
             target,
             damping_gain=gain,
             command=CommandedEpisode(SpeedCommand(n_cmd, lam_cmd, lam0)),
+            hidden={"start_velocity_c_per_t": v, "start_velocity_angle_rad": ang},
         )
 
     def _best_bearing_number_guess(self) -> float:

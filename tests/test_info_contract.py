@@ -203,4 +203,9 @@ def test_privileged_info_in_the_native_vector_env():
     _, infos = venv.reset(seed=7)
     gains = infos["privileged"]["hidden_parameters"]["damping_gain"]
     assert [float(g) for g in gains] == [e.hidden_parameters()["damping_gain"] for e in venv.unwrapped.envs]
+    _, _, _, _, infos = venv.step(np.zeros((2, 2), dtype=np.float32))
+    amps = infos["privileged"]["whirl_amplitude"]
+    assert [float(x) for x in amps] == [
+        e.privileged_quantities()["whirl_amplitude"] for e in venv.unwrapped.envs
+    ]
     venv.close()

@@ -270,6 +270,10 @@ class GFBEnv(gym.Env):
             self.episode.model, self._damping_search_range(), self._best_bearing_number_guess()
         )
 
+    def _drawn_bearing(self) -> DrawnBearing | None:
+        """The episode's drawn bearing for :meth:`hidden` (None: the task runs the nominal bearing)."""
+        return None
+
     def _extra_observation_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Bounds of task-specific observations appended after the probes, before the objective's
         (None: none)."""
@@ -317,15 +321,6 @@ class GFBEnv(gym.Env):
         Privileged: for oracles, teacher-student training and debugging, never for a benchmarked
         policy."""
         ep = self.episode
-        task = ep.task
-        draw = None
-        if hasattr(task, "clearance_m") and hasattr(task, "stiffness_factor"):  # a drawn bearing
-            draw = DrawnBearing(
-                float(task.clearance_m),
-                float(task.stiffness_factor),
-                float(task.load_n),
-                float(ep.model.foil_stiffness),
-            )
         u = self._integ.unbalance
         unbalance = None
         if u is not None:
@@ -352,7 +347,7 @@ class GFBEnv(gym.Env):
         return HiddenParameters(
             damping_gain=float(ep.actuator.gain),
             bearing=ep.bearing,
-            bearing_draw=draw,
+            bearing_draw=self._drawn_bearing(),
             unbalance=unbalance,
             sensors=sensors,
             shocks=tuple(ep.shock_schedule),

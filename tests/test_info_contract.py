@@ -209,3 +209,24 @@ def test_privileged_info_in_the_native_vector_env():
         e.privileged_quantities()["whirl_amplitude"] for e in venv.unwrapped.envs
     ]
     venv.close()
+
+
+def test_an_ideal_machine_has_no_sensor_or_unbalance_draws_and_the_legacy_noise_is_recorded():
+    from gfb_env.envs import RunUpEnv
+
+    env = RunUpEnv(episode_steps=12)
+    env.reset(seed=2)
+    hp = env.hidden_parameters()
+    assert hp["damping_gain"] == 1.0 and hp["unbalance"] is None and hp["bearing"] is None
+    s = hp["sensors"]
+    assert s["probe_bias_um"] == [0.0, 0.0] and s["tap_bias_kpa"] == [0.0] * 8
+    assert s["probe_noise_um"] is None and s["tap_error_kpa"] is None and s["observation_noise"] is None
+    noisy = RunUpEnv(episode_steps=12, observation_noise=0.01)
+    obs, _ = noisy.reset(seed=2)
+    clean, _ = env.reset(seed=2)
+    drawn = noisy.hidden_parameters()["sensors"]["observation_noise"]
+    measured = noisy.observation_layout.measured_indices
+    assert len(drawn) == len(measured)
+    # the envelope entries (4, 5) start at 0 and are clipped at 0: compare the others
+    keep = [i for i, m in enumerate(measured) if m not in (4, 5)]
+    assert np.allclose((obs[measured] - clean[measured])[keep], np.asarray(drawn)[keep], atol=1e-6)

@@ -60,7 +60,7 @@ def evaluate_rule(env_id: str, name: str, seeds: range, **rule_kwargs) -> list[d
                 "certified": bool(info["certified"]),
                 "touchdown": str(info["termination_reason"]) in ("touchdown", "solver_failure"),
                 "final_over_best": float(info["bearing_number"]) / min(cmd, best),
-                "gain": float(info["damping_gain"]),
+                "gain": float(u.hidden_parameters()["damping_gain"]),
             }
         )
     env.close()
@@ -111,7 +111,8 @@ def identification_accuracy(seeds: range, ramp_steps: int = 28) -> dict:
             grp = ramp[j : j + 4]
             pts.append((float(np.mean([lay.speed_rpm(o) for o in grp])), np.mean(grp, axis=0), len(grp)))
         est1 = refine_bearing(idf, pts, est0)
-        true = np.array([info["clearance_um"] * 1e-6, info["stiffness_factor"], info["load_n"]])
+        drawn = u.hidden_parameters()["bearing"]  # the privileged channel (not the info)
+        true = np.array([drawn["clearance_um"] * 1e-6, drawn["stiffness_factor"], drawn["load_n"]])
         lb_true = u.table(*true)["lambda_best"]
         for key, est in (("start", est0), ("refined", est1)):
             p = np.array([est.clearance_m, est.stiffness_factor, est.load_n])

@@ -1,10 +1,13 @@
 """The oracle of the v1 (commanded-speed) tasks (1 on the benchmark's normalised scale).
 
 :class:`CommandedOracle` (``oracle_v1``) is NOT an honest rule: it knows every hidden parameter of the
-episode, read through the env's public per-episode accessors (never from the observation):
-``env.unwrapped.speed_command`` (``Lambda_cmd``), ``env.unwrapped.best_stable_operating_point()`` (the
-exact ``lambda_best`` of the drawn plant over the achievable actual damping, the actual ``D_opt`` and its
-command ``D_opt / g``) and the true speed.  It does not know future shocks.  Its plan:
+episode, read through the env's privileged channel (issue 19, :mod:`gfb_env.envs.privileged`; never from
+the observation or ``info``): ``env.unwrapped.hidden()`` (the actual bearing, which turns the observed
+speed into the true Lambda), ``env.unwrapped.privileged_quantities()`` (the true whirl amplitude),
+``env.unwrapped.best_stable_operating_point()`` (the exact ``lambda_best`` of the drawn plant over the
+achievable actual damping, the actual ``D_opt`` and its command ``D_opt / g``), and the public
+``env.unwrapped.speed_command`` (``Lambda_cmd``, observed as n_cmd).  It does not know future shocks.
+Its plan:
 
 * RunUp-v1 / RunUpRandomized-v1: command ``D_opt / g`` from the first step; ramp at the motor limit to
   ``min(Lambda_cmd, (1 - margin) lambda_best)``; hold.
@@ -91,8 +94,9 @@ class _OneEnvPolicy(PrivilegedPolicy):
     def _track(self, setpoint_bearing_number: float) -> float:
         """Speed action toward ``setpoint`` (dead-beat at the motor limit; the true speed)."""
         u = self.u
-        lam = u.bearing.bearing_number_at(u.observation_layout.speed_rpm(self._obs))
-        step = u.max_rate() * u.control_interval
+        bearing = u.hidden().bearing  # the actual bearing (privileged: its clearance is drawn)
+        lam = bearing.bearing_number_at(u.observation_layout.speed_rpm(self._obs))
+        step = u.max_rate(bearing) * u.control_interval
         return float(np.clip((setpoint_bearing_number - lam) / step, -1.0, 1.0))
 
 
@@ -130,7 +134,8 @@ class CommandedOracle(_OneEnvPolicy):
             self._begin(obs)
         self._obs = obs
         if self.recovering:
-            if self.u.episode.whirl_amplitude > self.collapse_amplitude or self.u.episode.step == 0:
+            first = obs[-1] == 1.0  # time_left = steps_left / episode_steps: no step taken yet
+            if self.u.privileged_quantities()["whirl_amplitude"] > self.collapse_amplitude or first:
                 return np.array([-1.0, self.damping_action])
             self.recovering = False
         return np.array([self._track(self.setpoint), self.damping_action])

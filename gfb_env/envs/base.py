@@ -50,6 +50,7 @@ from gfb_env.envs.certify import BestStablePoint, best_stable_operating_point
 from gfb_env.envs.commanded import CertifiedPlant, CommandedEpisode, CommandedObjective, SpeedCommand
 from gfb_env.envs.config import DEFAULT_GRID, EnvConfig
 from gfb_env.envs.episode import Episode, EpisodeSetup, History, StepOutcome, TerminationReason
+from gfb_env.envs.privileged import DrawnBearing, HiddenParameters, ResidualUnbalance, SensorDraws
 from gfb_env.envs.render import EpisodeRenderer
 from gfb_env.envs.units import (
     N_ROTOR_OBS,
@@ -269,6 +270,10 @@ class GFBEnv(gym.Env):
             self.episode.model, self._damping_search_range(), self._best_bearing_number_guess()
         )
 
+    def _drawn_bearing(self) -> DrawnBearing | None:
+        """The episode's drawn bearing for :meth:`hidden` (None: the task runs the nominal bearing)."""
+        return None
+
     def _extra_observation_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Bounds of task-specific observations appended after the probes, before the objective's
         (None: none)."""
@@ -308,6 +313,85 @@ class GFBEnv(gym.Env):
     def damping_gain(self) -> float:
         """The episode's hidden damping effectiveness ``g`` (actual D_W = g x commanded; for oracles)."""
         return float(self.episode.actuator.gain)
+
+    # ---- the privileged channel (issue 19; gfb_env.envs.privileged, docs/envs.md) ---------------
+    def hidden(self) -> HiddenParameters:
+        """Every hidden draw of the current episode, typed
+        (:class:`~gfb_env.envs.privileged.HiddenParameters`; :meth:`hidden_parameters` is its dict).
+        Privileged: for oracles, teacher-student training and debugging, never for a benchmarked
+        policy."""
+        ep = self.episode
+        u = self._integ.unbalance
+        unbalance = None
+        if u is not None:
+            b = ep.bearing
+            unbalance = ResidualUnbalance(
+                float(ep.balance_grade_mm_s),
+                float(u.magnitude),
+                b.micrometres(u.magnitude),
+                float(u.phase_rad),
+            )
+        err, taps, noise = ep.probe_errors, ep.tap_errors_kpa, ep.observation_noise_draw
+        sensors = SensorDraws(
+            probe_bias_um=_tuple(ep.probe_bias_um),
+            tap_bias_kpa=_tuple(ep.tap_bias_kpa),
+            probe_noise_um=None
+            if err is None or self.proximity_probes.noise_um == 0
+            else _tuple(err.noise_um),
+            probe_position_error_um=None if err is None else _tuple(err.position_um),
+            probe_velocity_error_um_per_s=None if err is None else _tuple(err.velocity_um_per_s),
+            probe_extent_error_um=None if err is None else _tuple(err.extent_um),
+            tap_error_kpa=None if taps is None else _tuple(taps),
+            observation_noise=None if noise is None else _tuple(noise),
+        )
+        return HiddenParameters(
+            damping_gain=float(ep.actuator.gain),
+            bearing=ep.bearing,
+            bearing_draw=self._drawn_bearing(),
+            unbalance=unbalance,
+            sensors=sensors,
+            shocks=tuple(ep.shock_schedule),
+            task=dict(ep.task_hidden),
+        )
+
+    def hidden_parameters(self) -> dict[str, Any]:
+        """Every hidden draw of the current episode as a JSON-serialisable dict (units in the keys;
+        :meth:`~gfb_env.envs.privileged.HiddenParameters.as_dict`): ``damping_gain``, ``bearing`` (the
+        drawn clearance, stiffness factor, load; None on a nominal bearing), ``unbalance`` (grade,
+        amplitude, angle; None when balanced), ``sensors`` (biases, the last observation's noise),
+        ``shocks`` (every base shock so far: time, peak, duration, direction) and ``task`` (the start's
+        draws).  The same seed gives the same dict.  Privileged (module :mod:`gfb_env.envs.privileged`)."""
+        return self.hidden().as_dict()
+
+    def privileged_quantities(self) -> dict[str, Any]:
+        """The true quantities of the last reset or step that the sensors do not give: the noise-free
+        journal state, the actual Lambda and D_W, the judge's whirl amplitude and min film thickness,
+        the bearing force.  ``info["privileged"]`` (``privileged_info=True``) is this plus
+        ``hidden_parameters``.  Privileged (module :mod:`gfb_env.envs.privileged`)."""
+        ep, integ = self.episode, self._integ
+        model, b, s = ep.model, ep.bearing, integ.state
+        xi, eta, xi_dot, eta_dot = model.layout.rotor(s)
+        force = model.bearing_force(s)
+        eps = math.hypot(xi, eta)
+        return {
+            "xi": float(xi),
+            "eta": float(eta),
+            "xi_dot": float(xi_dot),
+            "eta_dot": float(eta_dot),
+            "xi_um": b.micrometres(xi),
+            "eta_um": b.micrometres(eta),
+            "xi_dot_m_s": b.micrometres(xi_dot) * 1e-6 / b.time_scale_s,
+            "eta_dot_m_s": b.micrometres(eta_dot) * 1e-6 / b.time_scale_s,
+            "eccentricity": eps,
+            "eccentricity_um": b.micrometres(eps),
+            "bearing_number": integ.bearing_number,
+            "foil_damping": integ.foil_damping,
+            "whirl_amplitude": ep.whirl_amplitude,
+            "whirl_amplitude_um": b.micrometres(ep.whirl_amplitude),
+            "min_film_thickness": ep.min_film_thickness,
+            "min_film_thickness_um": b.micrometres(ep.min_film_thickness),
+            "bearing_force_n": (b.newtons(float(force[0])), b.newtons(float(force[1]))),
+        }
 
     def best_stable_operating_point(self) -> BestStablePoint:
         """The exact best stable operating point of this episode's plant for the achievable actual
@@ -411,6 +495,7 @@ class GFBEnv(gym.Env):
             tap_bias_kpa=tap_bias,
             balance_grade_mm_s=grade,
             command=setup.command,
+            task_hidden=dict(setup.hidden) if setup.hidden else {},
         )
         return self._emit()
 
@@ -578,6 +663,8 @@ class GFBEnv(gym.Env):
             integ.add_shock(dataclasses.replace(shock, start_tau=max(shock.start_tau, integ.tau)))
         ep.shocks = tuple(events)
         ep.shock_count += len(events)
+        if events:
+            ep.shock_schedule += ep.shocks
 
     # ---- judge --------------------------------------------------------------------------------
     def _judge(self, out: StepOutcome, trace: PlantTrace, a: np.ndarray, sanitised: bool, kick: bool) -> None:
@@ -650,7 +737,9 @@ class GFBEnv(gym.Env):
         self._add_sensor_errors(obs, xi, eta)
         if self.observation_noise > 0:
             measured = self.observation_layout.measured_indices
-            obs[measured] += self.observation_noise * self.np_random.standard_normal(len(measured))
+            noise = self.observation_noise * self.np_random.standard_normal(len(measured))
+            obs[measured] += noise
+            ep.observation_noise_draw = noise
         obs[OBS_SPEED] = ep.bearing.speed_rpm_at(self._integ.bearing_number) / self.speed_scale_rpm
         # the actuator's position feedback: the damping it believes it sets (the gain is hidden)
         obs[OBS_DAMPING] = self.actions.action_from_damping(self._integ.foil_damping / ep.actuator.gain)
@@ -685,10 +774,11 @@ class GFBEnv(gym.Env):
             obs[[OBS_XI_EXTENT, OBS_ETA_EXTENT]] += err.extent_um / cnom_um
             x, y = probes.read_um(xi * c_um, eta * c_um, ep.probe_bias_um)
             ep.probe_readings_um = np.array([x + err.noise_um[0], y + err.noise_um[1]])
+            ep.probe_errors = err  # a reference, for the privileged channel
         if not self.pressure_taps.is_ideal:
-            obs[N_ROTOR_OBS:] += self.pressure_taps.errors_kpa(self.np_random, ep.tap_bias_kpa) * (
-                1e3 / nb.ambient_pressure_pa
-            )
+            taps = self.pressure_taps.errors_kpa(self.np_random, ep.tap_bias_kpa)
+            ep.tap_errors_kpa = taps
+            obs[N_ROTOR_OBS:] += taps * (1e3 / nb.ambient_pressure_pa)
 
     def _info(self) -> dict:
         ep, integ, model = self._ep, self._integ, self._ep.model
@@ -739,6 +829,11 @@ class GFBEnv(gym.Env):
         info.update(
             self.objective.info(ep.command, ep.step, lam, ep.termination is TerminationReason.SUCCESS)
         )
+        if self.config.privileged_info:  # opt-in only: nothing added, nothing computed, by default
+            info["privileged"] = {
+                **self.privileged_quantities(),
+                "hidden_parameters": self.hidden_parameters(),
+            }
         return info
 
     # ------------------------------------------------------------------------------------------
@@ -802,6 +897,10 @@ def _clip_action(x: float) -> float:
     if x != x:
         return 0.0
     return 1.0 if x > 1.0 else (-1.0 if x < -1.0 else x)
+
+
+def _tuple(x: Any) -> tuple[float, ...]:
+    return tuple(float(v) for v in x)
 
 
 def _span(r: tuple[float, float]) -> float:

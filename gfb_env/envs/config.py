@@ -132,6 +132,10 @@ class EnvConfig:
             kick (``disturbance_probability``): a task uses one or the other.
         rotor_balance: the rotor's residual unbalance, an ISO balance grade drawn per episode
             (:class:`~gfb_env.machine.RotorBalance` or a dict); default perfectly balanced.
+        privileged_info: add ``info["privileged"]`` (the true quantities and every hidden draw,
+            :meth:`~gfb_env.envs.base.GFBEnv.privileged_quantities`) at every reset and step; default
+            False (for oracles, teacher-student training and debugging: a benchmarked policy must not
+            read it; ``docs/envs.md``, "Information contract").
     """
 
     grid: Grid = field(default_factory=lambda: Grid.parse(DEFAULT_GRID))
@@ -155,6 +159,7 @@ class EnvConfig:
     pressure_taps: PressureTaps = field(default_factory=PressureTaps.ideal)
     shock_arrivals: ShockArrivals = field(default_factory=ShockArrivals.none)
     rotor_balance: RotorBalance = field(default_factory=RotorBalance.perfect)
+    privileged_info: bool = False
 
     def __post_init__(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -203,6 +208,7 @@ class EnvConfig:
         put("pressure_taps", component("pressure_taps", PressureTaps, self.pressure_taps))
         put("shock_arrivals", component("shock_arrivals", ShockArrivals, self.shock_arrivals))
         put("rotor_balance", component("rotor_balance", RotorBalance, self.rotor_balance))
+        put("privileged_info", check_bool("privileged_info", self.privileged_info))
         if self.shock_arrivals.rate_per_s > 0 and self.disturbance_probability > 0:
             raise ValueError(
                 "shock_arrivals and disturbance_probability > 0 exclude each other: physical shocks replace "

@@ -59,7 +59,9 @@ class EpisodeSetup:
     to every ``info`` dict.  ``foil_damping`` is the plant's actual D_W at the start; ``damping_gain``
     fixes this episode's actuator effectiveness (None: the actuator's own, or its draw from
     ``gain_range``).  ``command``: the objective's per-episode state
-    (:class:`~gfb_env.envs.commanded.CommandedEpisode`: the speed command)."""
+    (:class:`~gfb_env.envs.commanded.CommandedEpisode`: the speed command).  ``hidden``: the task's own
+    hidden draws at the start, units in the keys (the privileged channel's
+    :attr:`~gfb_env.envs.privileged.HiddenParameters.task`)."""
 
     model: GFBModel
     state: np.ndarray
@@ -70,6 +72,7 @@ class EpisodeSetup:
     task: Any = None
     damping_gain: float | None = None
     command: Any = None
+    hidden: dict | None = None
 
 
 @dataclass
@@ -116,6 +119,12 @@ class Episode:
         shock_count: base shocks since reset.
         command: the commanded-speed objective's state of the episode
             (:class:`~gfb_env.envs.commanded.CommandedEpisode`).
+        task_hidden: the task's hidden draws at the start (:attr:`EpisodeSetup.hidden`).
+        shock_schedule: every base shock drawn since reset, in time order (the privileged channel).
+        probe_errors: the probes' :class:`~gfb_env.machine.ProbeErrors` of the last observation (None:
+            ideal probes); tap_errors_kpa: the taps' errors of the last observation, kPa (None: ideal);
+            observation_noise_draw: the legacy additive noise of the last observation (None: none).
+            Kept references of what the observation computes anyway, for the privileged channel.
     """
 
     model: GFBModel
@@ -147,6 +156,11 @@ class Episode:
     shocks: tuple = ()
     shock_count: int = 0
     command: Any = None
+    task_hidden: dict = field(default_factory=dict)
+    shock_schedule: tuple = ()
+    probe_errors: Any = None
+    tap_errors_kpa: np.ndarray | None = None
+    observation_noise_draw: np.ndarray | None = None
 
     @property
     def done(self) -> bool:

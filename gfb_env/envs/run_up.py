@@ -246,6 +246,7 @@ class RunUpEnv(GFBEnv):
             target,
             damping_gain=gain,
             command=CommandedEpisode(command),
+            hidden={"start_velocity_c_per_t": v, "start_velocity_angle_rad": ang},
         )
 
     def _best_bearing_number_guess(self) -> float:

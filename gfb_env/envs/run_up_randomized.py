@@ -14,6 +14,7 @@ from gfb_env.envs._data import randomized_task_table
 from gfb_env.envs.base import EpisodeSetup, GFBEnv, viscoelastic_model
 from gfb_env.envs.commanded import CommandedEpisode, SpeedCommand
 from gfb_env.envs.config import check_bool, check_in, check_range
+from gfb_env.envs.privileged import DrawnBearing
 from gfb_env.envs.run_up import RunUpEnv, RunUpTarget
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.model import GFBModel
@@ -266,6 +267,17 @@ class RunUpRandomizedEnv(RunUpEnv):
             target,
             damping_gain=gain,
             command=CommandedEpisode(SpeedCommand(n_cmd, lam_cmd, lam0)),
+            hidden={"start_velocity_c_per_t": v, "start_velocity_angle_rad": ang},
+        )
+
+    def _drawn_bearing(self) -> DrawnBearing:
+        """The draw of the episode (or its fixed reset options), for the privileged channel."""
+        t = self.episode.task
+        return DrawnBearing(
+            float(t.clearance_m),
+            float(t.stiffness_factor),
+            float(t.load_n),
+            float(self.episode.model.foil_stiffness),
         )
 
     def _best_bearing_number_guess(self) -> float:

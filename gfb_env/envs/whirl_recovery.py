@@ -142,6 +142,7 @@ class WhirlRecoveryEnv(GFBEnv):
             command=CommandedEpisode(
                 SpeedCommand(b.speed_rpm_at(lam_w), lam_w, self.reference_bearing_number)
             ),
+            hidden={"start_phase_tau": phase},
         )
 
     def _best_bearing_number_guess(self) -> float:

@@ -1,6 +1,7 @@
 """The frictional foil (issue 22): K_W in parallel with a Jenkins element (K_T in series with a
 regularised Coulomb slider), its Jacobian, its hysteresis loop and its exact limits."""
 
+import json
 import math
 
 import numpy as np
@@ -12,7 +13,7 @@ from gfb_env.analysis.stability import critical_bearing_number, jacobian_eigenva
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel, Structure
-from tests.conftest import random_admissible_state
+from tests.conftest import assert_refused_at_once, random_admissible_state
 from tests.test_model import fd_jacobian
 
 KW, KT = 1.0, 0.5
@@ -197,6 +198,74 @@ def test_invalid_frictional_arguments(kwargs, match):
 def test_frictional_defaults_and_layout():
     m = GFBModel("frictional", grid="13x5", foil_stiffness=0.8)
     assert m.structure is Structure.FRICTIONAL and m.stick_stiffness == 0.8
-    assert m.friction_coefficient == 0.1 and m.slip_viscosity == 1e-4
+    assert m.friction_coefficient == 0.1 and m.slip_viscosity == 1e-3
     assert m.layout.n_foil == 12 and m.layout.block_size == m.grid.n_rows + 1
     assert not m.sparse_offdiagonal_blocks
+
+
+# ---------------------------------------------------------------------------------------------- CLI
+def _critical_json(argv: list[str], capsys) -> dict:
+    from gfb_env.cli import main
+
+    assert main(["critical", "--grid", "21x5", "--json", *argv]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+@pytest.mark.parametrize(
+    "friction,elastic",
+    [
+        (["--friction-coefficient", "1e6"], "1.5"),  # stuck from the unloaded state: K_W + K_T
+        (["--friction-coefficient", "0", "--slip-viscosity", "1e-7"], "1.0"),  # free slider: K_W
+    ],
+)
+def test_cli_critical_exact_limits(friction, elastic, capsys):
+    f = _critical_json(
+        ["--structure", "frictional", "--foil-stiffness", "1.0", "--stick-stiffness", "0.5", *friction],
+        capsys,
+    )
+    e = _critical_json(["--structure", "elastic", "--foil-stiffness", elastic], capsys)
+    assert f["structure"] == "frictional" and f["stick_stiffness"] == 0.5
+    assert abs(f["critical_bearing_number"] - e["critical_bearing_number"]) < 1e-4
+    assert abs(f["whirl_frequency_ratio"] - e["whirl_frequency_ratio"]) < 1e-4
+
+
+def test_cli_equilibrium_reports_the_friction_parameters(capsys):
+    from gfb_env.cli import main
+
+    argv = ["equilibrium", "--structure", "frictional", "--friction-coefficient", "0.2", "--grid", "21x5"]
+    assert main([*argv, "--bearing-number", "0.6", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["friction_coefficient"] == 0.2 and d["bearing_force"] == pytest.approx(d["load"], rel=1e-9)
+
+
+_SPEED = {
+    "critical": [],
+    "simulate": ["--bearing-number", "0.6", "--duration", "5"],
+    "equilibrium": ["--bearing-number", "0.6"],
+}
+_BAD = [
+    (["--structure", "frictional", "--stick-stiffness", "-1"], "--stick-stiffness", "positive"),
+    (["--structure", "frictional", "--stick-stiffness", "nan"], "--stick-stiffness", "positive"),
+    (["--structure", "frictional", "--friction-coefficient", "-0.1"], "--friction-coefficient", ">= 0"),
+    (["--structure", "frictional", "--friction-coefficient", "nan"], "--friction-coefficient", "finite"),
+    (["--structure", "frictional", "--slip-viscosity", "0"], "--slip-viscosity", "positive"),
+    (["--structure", "elastic", "--stick-stiffness", "1"], "--stick-stiffness", "frictional only"),
+    (
+        ["--structure", "viscoelastic", "--friction-coefficient", "0.1"],
+        "--friction-coefficient",
+        "frictional only",
+    ),
+    (["--friction-coefficient", "0.1"], "--friction-coefficient", "frictional only"),  # default: viscoelastic
+]
+
+
+@pytest.mark.parametrize("cmd", sorted(_SPEED))
+@pytest.mark.parametrize("argv,option,fragment", _BAD)
+def test_cli_refuses_bad_friction_options(cmd, argv, option, fragment, tmp_path, capsys):
+    from gfb_env.cli import main
+
+    out = tmp_path / "out"
+    extra = ["--out", str(out)] if cmd == "simulate" else []
+    assert_refused_at_once(
+        main, [cmd, *argv, "--grid", "21x5", *_SPEED[cmd], *extra], option, fragment, capsys, out
+    )

@@ -47,6 +47,9 @@ FRICTIONAL = 3
 # ``KernelParameters``.
 _NC, _NR, _STRUCT = 0, 1, 2
 _KW, _KAPPA, _MASS, _GRAV, _KT, _MU, _ETA = 0, 1, 2, 3, 4, 5, 6
+#: Relative band below the Coulomb limit in which the Jacobian takes the slip branch (see
+#: :func:`slider_rate_derivatives`).
+SLIP_BRANCH_BAND = 1e-7
 #: Length of ``fp`` (callers that stack parameter vectors allocate this many).
 N_FLOAT_PARAMETERS = 7
 
@@ -113,12 +116,15 @@ def slider_rate_derivatives(sl, ssum, nr, dz, kw, kt, mu, eta, out):
     """``out = [dS'/dP_l (the same for every row l of the column), dS'/dS]`` of :func:`slider_rate`.
 
     At the threshold ``|F| = F_c`` (and for ``F_c = 0``: mu_C = 0 or an ambient column) the slip branch is
-    taken, so the linearisation at mu_C = 0 is the free slider of the K_W foil."""
+    taken, so the linearisation at mu_C = 0 is the free slider of the K_W foil.  "At the threshold" has
+    the band :data:`SLIP_BRANCH_BAND` (relative to F_c, plus 1e-9 absolute): a slider that an
+    equilibrium put on its limit sits there only to the Newton tolerance, and its linearisation must not
+    depend on the last bits of that solve.  (Either one-sided derivative is a valid Newton matrix there.)"""
     pm1 = dz * (ssum - nr)
     q = (kt * sl - pm1) / (kw + kt)
     f = kt * (q - sl)
     fc = mu * abs(pm1)
-    if abs(f) - fc >= 0.0:
+    if abs(f) - fc >= -(SLIP_BRANCH_BAND * fc + 1e-9):
         sg = 1.0 if f >= 0.0 else -1.0
         spm = 1.0 if pm1 > 0.0 else (-1.0 if pm1 < 0.0 else 0.0)
         dfdp = -kt * dz / (kw + kt)

@@ -532,7 +532,9 @@ class GFBModel:
         exactly 0 whose eigenvector is a shift of the slider: another equilibrium of the continuum
         ``|F| <= F_c``, neutral rather than unstable.  Those states are dropped; the eigenvalues of the
         rest are those of the foil with the stuck sliders held (stiffness K_W + K_T in those columns).
-        Sliders at or past the slip limit keep their rows (the slip branch, see the kernels)."""
+        Sliders at or past the slip limit (within the kernels' ``SLIP_BRANCH_BAND``) keep their rows, on
+        the slip branch: at mu_C = 0 that is the free slider (the K_W foil); in general it is the tangent
+        of a slider that a further load would move, not of one being unloaded (which sticks at once)."""
         if self.structure is not Structure.FRICTIONAL:
             return None
         J = self.jacobian(s, bearing_number, 1.0)

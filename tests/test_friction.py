@@ -269,3 +269,28 @@ def test_cli_refuses_bad_friction_options(cmd, argv, option, fragment, tmp_path,
     assert_refused_at_once(
         main, [cmd, *argv, "--grid", "21x5", *_SPEED[cmd], *extra], option, fragment, capsys, out
     )
+
+
+def test_finite_friction_critical_bearing_number_converges_in_eta_and_transients_agree():
+    """mu_C = 0.3 (sliders partly at their limit, linearised on the slip branch): Lambda_c converges as the
+    slip viscosity vanishes, lies between the free (K_W) and the stuck (K_W + K_T) foil, and a small
+    rotor perturbation decays 0.01 below it and grows 0.01 above it."""
+    lc = {
+        eta: critical_bearing_number(frictional(0.3, eta=eta)).critical_bearing_number for eta in (1e-3, 1e-5)
+    }
+    assert abs(lc[1e-3] - lc[1e-5]) < 1e-4
+    stuck_lc = critical_bearing_number(
+        GFBModel("elastic", grid="21x5", foil_stiffness=KW + KT)
+    ).critical_bearing_number
+    free_lc = critical_bearing_number(
+        GFBModel("elastic", grid="21x5", foil_stiffness=KW)
+    ).critical_bearing_number
+    assert stuck_lc < lc[1e-3] < free_lc
+    m = frictional(0.3)
+    L = m.layout
+    for lam, grows in ((lc[1e-3] - 0.01, False), (lc[1e-3] + 0.01, True)):
+        s = find_equilibrium(m, lam)
+        it = TrapezoidalIntegrator(m, L.with_rotor(s, *(L.rotor(s)[:2] + [1e-3, 0.0])), lam)
+        x = it.advance(600.0, record_interval=1.0).trajectory.xi - L.rotor(s)[0]
+        ratio = np.abs(x[-100:]).max() / np.abs(x[50:150]).max()
+        assert (ratio > 2.0) if grows else (ratio < 0.9), ratio

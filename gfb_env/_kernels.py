@@ -38,12 +38,20 @@ from numba import njit
 RIGID = 0
 ELASTIC = 1
 VISCOELASTIC = 2
+FRICTIONAL = 3
 
 # Integer and float parameter vectors (kept as arrays so that compiled signatures stay small).
-# ip = [nc, nr, structure]; fp = [foil_stiffness, kappa, mass, gravity].  Only this module indexes them;
-# the model builds them with :func:`pack_parameters` from its named ``KernelParameters``.
+# ip = [nc, nr, structure]; fp = [foil_stiffness, kappa, mass, gravity, stick_stiffness,
+# friction_coefficient, slip_viscosity] (the last three only read by the frictional foil).  Only this
+# module indexes them; the model builds them with :func:`pack_parameters` from its named
+# ``KernelParameters``.
 _NC, _NR, _STRUCT = 0, 1, 2
-_KW, _KAPPA, _MASS, _GRAV = 0, 1, 2, 3
+_KW, _KAPPA, _MASS, _GRAV, _KT, _MU, _ETA = 0, 1, 2, 3, 4, 5, 6
+#: Relative band below the Coulomb limit in which the Jacobian takes the slip branch (see
+#: :func:`slider_rate_derivatives`).
+SLIP_BRANCH_BAND = 1e-7
+#: Length of ``fp`` (callers that stack parameter vectors allocate this many).
+N_FLOAT_PARAMETERS = 7
 
 
 def pack_parameters(
@@ -56,12 +64,76 @@ def pack_parameters(
     gravity_parameter: float,
     sin_phi: np.ndarray,
     cos_phi: np.ndarray,
+    stick_stiffness: float = 0.0,
+    friction_coefficient: float = 0.0,
+    slip_viscosity: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(ip, fp, sn, cs)``: the leading parameter arguments of :func:`rhs`, :func:`jacobian_blocks` and
     :func:`film_thickness`."""
     ip = np.array([n_columns, n_rows, structure_code], dtype=np.int64)
-    fp = np.array([foil_stiffness, kappa, mass_parameter, gravity_parameter], dtype=np.float64)
+    fp = np.array(
+        [
+            foil_stiffness,
+            kappa,
+            mass_parameter,
+            gravity_parameter,
+            stick_stiffness,
+            friction_coefficient,
+            slip_viscosity,
+        ],
+        dtype=np.float64,
+    )
     return ip, fp, sin_phi, cos_phi
+
+
+@njit(cache=True)
+def coulomb_slider_rate(f, fc, eta):
+    """Regularised Coulomb slider: ``eta S' = sign(F) max(|F| - F_c, 0)`` (Perzyna viscoplasticity).
+
+    Exactly stuck (returns 0) while ``|F| <= F_c``; slipping with the overstress ``eta |S'|``."""
+    if abs(f) - fc > 0.0:
+        return (f - fc if f > 0.0 else f + fc) / eta
+    return 0.0
+
+
+@njit(cache=True)
+def slider_rate(sl, ssum, nr, dz, kw, kt, mu, eta):
+    """Slider rate S' of one column's Jenkins element (frictional foil).
+
+    ``Pbar - 1 = dz (ssum - nr)``; deflection ``Q = (K_T S - (Pbar - 1)) / (K_W + K_T)``; friction force
+    ``F = K_T (Q - S)``; Coulomb limit ``F_c = mu_C |Pbar - 1|``.  Regularised (Perzyna viscoplastic)
+    Coulomb law ``eta S' = sign(F) max(|F| - F_c, 0)``: exactly stuck (S' = 0) while ``|F| <= F_c``,
+    slipping with the overstress ``|F| - F_c = eta |S'|`` otherwise (:func:`coulomb_slider_rate`).
+    """
+    pm1 = dz * (ssum - nr)
+    q = (kt * sl - pm1) / (kw + kt)
+    f = kt * (q - sl)
+    return coulomb_slider_rate(f, mu * abs(pm1), eta)
+
+
+@njit(cache=True)
+def slider_rate_derivatives(sl, ssum, nr, dz, kw, kt, mu, eta, out):
+    """``out = [dS'/dP_l (the same for every row l of the column), dS'/dS]`` of :func:`slider_rate`.
+
+    At the threshold ``|F| = F_c`` (and for ``F_c = 0``: mu_C = 0 or an ambient column) the slip branch is
+    taken, so the linearisation at mu_C = 0 is the free slider of the K_W foil.  "At the threshold" has
+    the band :data:`SLIP_BRANCH_BAND` (relative to F_c, plus 1e-9 absolute): a slider that an
+    equilibrium put on its limit sits there only to the Newton tolerance, and its linearisation must not
+    depend on the last bits of that solve.  (Either one-sided derivative is a valid Newton matrix there.)"""
+    pm1 = dz * (ssum - nr)
+    q = (kt * sl - pm1) / (kw + kt)
+    f = kt * (q - sl)
+    fc = mu * abs(pm1)
+    if abs(f) - fc >= -(SLIP_BRANCH_BAND * fc + 1e-9):
+        sg = 1.0 if f >= 0.0 else -1.0
+        spm = 1.0 if pm1 > 0.0 else (-1.0 if pm1 < 0.0 else 0.0)
+        dfdp = -kt * dz / (kw + kt)
+        dfcdp = mu * dz * spm
+        out[0] = (dfdp - sg * dfcdp) / eta
+        out[1] = -kt * kw / ((kw + kt) * eta)
+    else:
+        out[0] = 0.0
+        out[1] = 0.0
 
 
 @njit(cache=True)
@@ -72,7 +144,7 @@ def film_thickness(s, ip, fp, sn, cs, H):
     st = ip[_STRUCT]
     kw = fp[_KW]
     npres = nc * nr
-    r0 = npres + (nc if st == VISCOELASTIC else 0)
+    r0 = npres + (nc if (st == VISCOELASTIC or st == FRICTIONAL) else 0)
     xi = s[r0]
     eta = s[r0 + 1]
     dz = 1.0 / (nr + 1)
@@ -86,6 +158,13 @@ def film_thickness(s, ip, fp, sn, cs, H):
             for j in range(nr):
                 acc += s[i * nr + j]
             q = -dz * (acc - nr) / kw
+        elif st == FRICTIONAL:
+            # K_W Q + K_T (Q - S) = -(Pbar - 1), Pbar - 1 = dz (sum P - nr)
+            acc = 0.0
+            for j in range(nr):
+                acc += s[i * nr + j]
+            kt = fp[_KT]
+            q = (kt * s[npres + i] - dz * (acc - nr)) / (kw + kt)
         H[i] = 1.0 - xi * sn[i] - eta * cs[i] - q
         if H[i] < hmin:
             hmin = H[i]
@@ -106,13 +185,16 @@ def rhs(s, lam, dw, ip, fp, sn, cs, out, H, Hd):
     mass = fp[_MASS]
     grav = fp[_GRAV]
     npres = nc * nr
-    r0 = npres + (nc if st == VISCOELASTIC else 0)
+    r0 = npres + (nc if (st == VISCOELASTIC or st == FRICTIONAL) else 0)
     dphi = 2.0 * math.pi / nc
     dz = 1.0 / (nr + 1)
     a = 1.0 / (4.0 * dphi * dphi)
     b = kappa * kappa / (4.0 * dz * dz)
     c = lam / (4.0 * dphi)
     ce = dz / kw
+    kt = fp[_KT]
+    if st == FRICTIONAL:
+        ce = dz / (kw + kt)  # dQ/dPbar of the parallel springs K_W + K_T (S held)
     hmin = film_thickness(s, ip, fp, sn, cs, H)
     u = s[r0 + 2]
     v = s[r0 + 3]
@@ -163,6 +245,15 @@ def rhs(s, lam, dw, ip, fp, sn, cs, out, H, Hd):
                 k = i * nr + j
                 out[k] = (out[k] + s[k] * qd) / hi
         else:
+            if st == FRICTIONAL:
+                # Jenkins element: slider rate S' (regularised Coulomb law, see slider_rate); the
+                # deflection rate Q' = (K_T S' - Pbar') / (K_W + K_T) puts -K_T S' / (K_W + K_T) into H'
+                sd = slider_rate(s[npres + i], ssum, nr, dz, kw, kt, fp[_MU], fp[_ETA])
+                out[npres + i] = sd
+                ar = ar - kt * sd / (kw + kt)
+                for j in range(nr):
+                    k = i * nr + j
+                    out[k] += s[k] * kt * sd / (kw + kt)
             sb = 0.0
             for j in range(nr):
                 sb += out[i * nr + j]
@@ -194,6 +285,11 @@ def jacobian_blocks(s, lam, dw, ip, fp, sn, cs, F, H, Hd, Ad, Ap, Am, Er, Rr, Sr
     b = kappa * kappa / (4.0 * dz * dz)
     c = lam / (4.0 * dphi)
     ce = dz / kw
+    kt = fp[_KT]
+    if st == FRICTIONAL:
+        ce = dz / (kw + kt)
+    npres = nc * nr
+    dsd = np.zeros(2)
     rhs(s, lam, dw, ip, fp, sn, cs, F, H, Hd)
     Ad[:] = 0.0
     Ap[:] = 0.0
@@ -258,15 +354,31 @@ def jacobian_blocks(s, lam, dw, ip, fp, sn, cs, F, H, Hd, Ad, Ap, Am, Er, Rr, Sr
             for l in range(nr):
                 Ad[i, nr, l] = -dz / dw
             Ad[i, nr, nr] = -kw / dw
-        elif st == ELASTIC:
+        elif st == ELASTIC or st == FRICTIONAL:
             for j in range(nr):
                 fj = F[i * nr + j]
                 for l in range(nr):
                     Ad[i, j, l] += (dRdH0[j] - fj) * ce
                     Ap[i, j, l] += dRdHp[j] * ce
                     Am[i, j, l] += dRdHm[j] * ce
-        # divide by H (rigid, viscoelastic) or apply the Sherman-Morrison inverse (elastic)
-        if st == ELASTIC:
+            if st == FRICTIONAL:
+                # dH/dS = -K_T/(K_W+K_T); the slider rate enters H' as -K_T S'/(K_W+K_T); the slider row
+                # is d S'/d[P, S] (its own column only)
+                kq = kt / (kw + kt)
+                slider_rate_derivatives(s[npres + i], ssum, nr, dz, kw, kt, fp[_MU], fp[_ETA], dsd)
+                for j in range(nr):
+                    p = s[i * nr + j]
+                    fj = F[i * nr + j]
+                    for l in range(nr):
+                        Ad[i, j, l] += p * kq * dsd[0]
+                    Ad[i, j, nr] = -dRdH0[j] * kq + fj * kq + p * kq * dsd[1]
+                    Ap[i, j, nr] = -dRdHp[j] * kq
+                    Am[i, j, nr] = -dRdHm[j] * kq
+                for l in range(nr):
+                    Ad[i, nr, l] = dsd[0]
+                Ad[i, nr, nr] = dsd[1]
+        # divide by H (rigid, viscoelastic) or apply the Sherman-Morrison inverse (elastic, frictional)
+        if st == ELASTIC or st == FRICTIONAL:
             den = hi + ce * ssum
             for blk in range(3):
                 for l in range(m):

@@ -34,6 +34,10 @@ def find_equilibrium(
     M G, a half, ..., all of it), warm-starting each stage; a failed stage is retried with smaller
     load increments before :class:`EquilibriumError` is raised.  The equilibrium does not depend on
     D_W (Q' = 0).  Returns the state (rotor velocities zero).
+
+    Frictional foil: the sliders start at the guess's positions (the centred start: S = 0, the unloaded
+    foil) and each load stage moves them only as far as the Coulomb limit forces them (see
+    :meth:`GFBModel.equilibrium_residual`): the state a quasi-static loading reaches.
     """
     model.check_operating_point(bearing_number, 1.0)
     if bearing_number <= 0:
@@ -70,9 +74,12 @@ def _newton_equilibrium(
     s = s.copy()
     s[L.xi_dot_index] = 0.0
     s[L.eta_dot_index] = 0.0
+    # frictional foil: the sliders move from where this stage starts only as far as the Coulomb limit
+    # forces them (GFBModel.equilibrium_residual); k(s) itself for the other foils
+    slider_reference = None if L.foil_state(s) is None else L.foil_state(s).copy()
 
     def residual(x):  # the same model with the gravity scaled by the load fraction
-        return model.rhs_and_minimum(x, lam, 1.0, gravity_scale=load_fraction)
+        return model.equilibrium_residual(x, lam, slider_reference, gravity_scale=load_fraction)
 
     r, mn = residual(s)
     if not mn > 0:
@@ -81,7 +88,9 @@ def _newton_equilibrium(
     for _ in range(max_iterations):
         if rn < tol:
             return s
-        J = model.jacobian(s, lam, 1.0)  # G enters k only as a constant: J is load-independent
+        J = model.equilibrium_jacobian(
+            s, lam, slider_reference
+        )  # G is a constant of k: J is load-independent
         try:
             ds = spla.spsolve(J.tocsc(), -r)
         except RuntimeError as exc:  # singular

@@ -17,7 +17,10 @@ Nondimensional equations (tau = t/T, lengths / C, pressures / p0):
 * Foil (Sect. 2.3), loaded by the axial mean ``Pbar = int P dZ`` (trapezoid rule with the edges):
   ``rigid``: Q = 0; ``elastic`` (Eq. 6-8): ``K_W Q = -(Pbar - 1)``, so Q' depends on P' and each
   column needs a rank-one (Sherman-Morrison) solve; ``viscoelastic`` (Eq. 9-10):
-  ``D_W Q' + K_W Q = -(Pbar - 1)`` with Q a state.
+  ``D_W Q' + K_W Q = -(Pbar - 1)`` with Q a state; ``frictional`` (dry friction, beyond the paper):
+  K_W in parallel with a Jenkins element (stick stiffness K_T in series with a Coulomb slider at S),
+  ``K_W Q + K_T (Q - S) = -(Pbar - 1)`` with the slider position S a state and
+  ``eta S' = sign(F) max(|F| - mu_C |Pbar - 1|, 0)``, ``F = K_T (Q - S)`` (see :class:`Structure`).
 * Rotor (Eq. 11-12, per bearing): ``f = int int (P - 1) [sin phi, cos phi] dphi dZ`` and
   ``xi'' = -f_xi / M``, ``eta'' = G - f_eta / M``.
 
@@ -57,15 +60,42 @@ MAX_JACOBIAN_BYTES = 2**30
 
 
 class Structure(enum.StrEnum):
-    """Foil structure model (paper Sect. 2.3)."""
+    """Foil structure model (paper Sect. 2.3; ``frictional`` is the paper's named next step).
+
+    ``frictional``: per column the foundation K_W in parallel with a Jenkins element, a stick stiffness
+    K_T in series with a Coulomb slider at S (one state per column).  Friction force
+    ``F = K_T (Q - S)``, force balance ``K_W Q + F = -(Pbar - 1)`` (so Q is algebraic given S and Pbar,
+    and Q' = (K_T S' - Pbar') / (K_W + K_T) keeps the elastic foil's rank-one per-column solve).
+    Coulomb limit ``F_c = mu_C N`` with the normal load ``N = |Pbar - 1| = |K_W Q + F|``, the load the
+    foundation carries: Eq. (6)'s foundation is bilateral (it carries a sub-ambient column's suction
+    like a pressure load), and the same magnitude presses its sliding contacts.  (With
+    ``max(Pbar - 1, 0)`` every sub-ambient column would be frictionless, and mu_C -> infinity would not
+    be the stuck foil.)  Slider law, regularised by one parameter, the slip viscosity eta:
+    ``eta S' = sign(F) max(|F| - F_c, 0)`` (Perzyna viscoplasticity): exactly stuck (S' = 0) for every
+    eta while ``|F| <= F_c``; slipping with the overstress ``|F| - F_c = eta |S'|``, which vanishes as
+    eta -> 0 (the rate-independent Coulomb slider).  The law is continuous with a kink at the threshold
+    (piecewise linear in F); a C1 law with an exact stick zone has zero slope at the threshold and would
+    linearise the mu_C = 0 foil as stuck (K_W + K_T) instead of free (K_W).
+    """
 
     RIGID = "rigid"
     ELASTIC = "elastic"
     VISCOELASTIC = "viscoelastic"
+    FRICTIONAL = "frictional"
 
     @property
     def code(self) -> int:
-        return {"rigid": K.RIGID, "elastic": K.ELASTIC, "viscoelastic": K.VISCOELASTIC}[self.value]
+        return {
+            "rigid": K.RIGID,
+            "elastic": K.ELASTIC,
+            "viscoelastic": K.VISCOELASTIC,
+            "frictional": K.FRICTIONAL,
+        }[self.value]
+
+    @property
+    def has_foil_state(self) -> bool:
+        """Whether the foil has one state per column (viscoelastic: Q; frictional: the slider S)."""
+        return self in (Structure.VISCOELASTIC, Structure.FRICTIONAL)
 
     @classmethod
     def parse(cls, value: Structure | str) -> Structure:
@@ -175,14 +205,15 @@ class Grid:
 class StateLayout:
     """Owner of the state vector of Eq. (13); nothing else indexes the state by hand.
 
-    ``s = [P (N_phi-1)*(N_Z-2), phi-major; Q (N_phi-1), viscoelastic only; xi, eta, xi', eta']``.
+    ``s = [P (N_phi-1)*(N_Z-2), phi-major; Q (N_phi-1), viscoelastic only, or the slider positions S
+    (N_phi-1), frictional only; xi, eta, xi', eta']``.
     """
 
     def __init__(self, grid: Grid, structure: Structure | str):
         self.grid = grid
         self.structure = Structure.parse(structure)
         self.n_pressure = grid.n_columns * grid.n_rows
-        self.n_foil = grid.n_columns if self.structure is Structure.VISCOELASTIC else 0
+        self.n_foil = grid.n_columns if self.structure.has_foil_state else 0
         self.rotor_offset = self.n_pressure + self.n_foil
         self.size = self.rotor_offset + 4
         self.pressure_slice = slice(0, self.n_pressure)
@@ -203,7 +234,8 @@ class StateLayout:
         return s[self.pressure_slice].reshape(self.grid.n_columns, self.grid.n_rows)
 
     def foil_state(self, s: np.ndarray) -> np.ndarray | None:
-        """Foil deflection state Q_i (viscoelastic only, else None)."""
+        """Foil state per column: the deflection Q_i (viscoelastic) or the slider position S_i
+        (frictional); None for the rigid and elastic foils."""
         return s[self.foil_slice] if self.n_foil else None
 
     def rotor(self, s: np.ndarray) -> np.ndarray:
@@ -262,6 +294,24 @@ class KernelParameters(NamedTuple):
     gravity_parameter: float
     sin_phi: np.ndarray
     cos_phi: np.ndarray
+    stick_stiffness: float = 0.0
+    friction_coefficient: float = 0.0
+    slip_viscosity: float = 1.0
+
+
+#: Default slip viscosity eta of the frictional foil's regularised Coulomb law (nondimensional, the
+#: overstress per unit slider rate).  The slip relaxation time eta (K_W + K_T) / (K_W K_T) is then ~1e-3
+#: for K ~ 1-2, far below the whirl period (~30): the loop energy of an imposed Q = q sin(tau) is within
+#: 0.2-1.2 % of the rate-independent Jenkins loop at eta = 1e-3, and the error is O(eta) (0.02-0.12 % at
+#: 1e-4).  Smaller eta costs integration steps: the slip onsets are boundary layers of width ~eta, which
+#: the step control resolves (measured on 79x7, Lambda = 0.7, mu_C = 0.1, 50 time units: 1638 steps at
+#: eta = 1e-2, 9116 at 1e-3, ~146 000 at 1e-4, against ~285 for the viscoelastic foil).
+DEFAULT_SLIP_VISCOSITY = 1e-3
+#: Default Coulomb coefficient mu_C of the frictional foil.  Identified bump-foil friction coefficients
+#: are about 0.05-0.2 (the range the literature on bump-foil damping uses, e.g. the structural tests of
+#: Ku and Heshmat and of DellaCorte and co-workers at NASA Glenn; cited from memory, the exact reports
+#: not checked here), so 0.1 is the middle of it.
+DEFAULT_FRICTION_COEFFICIENT = 0.1
 
 
 class GFBModel:
@@ -272,6 +322,12 @@ class GFBModel:
         grid: finite-difference grid (paper: 79 x 7).
         bearing: dimensional parameters (Table 1 by default); gives M, G, kappa and K_W.
         foil_stiffness: overrides the Walowit-Anno ``K_W`` of ``bearing``.
+        stick_stiffness: ``K_T`` of the frictional foil (default: equal to ``K_W``).
+        friction_coefficient: Coulomb coefficient ``mu_C`` of the frictional foil (default 0.1, >= 0).
+        slip_viscosity: regularisation ``eta`` of the frictional foil's slider law (default 1e-3,
+            :data:`DEFAULT_SLIP_VISCOSITY`).
+
+    The three frictional parameters are refused (``ValueError``) for the other structures.
     """
 
     def __init__(
@@ -280,8 +336,31 @@ class GFBModel:
         grid: Grid | str | None = None,
         bearing: BearingParameters | None = None,
         foil_stiffness: float | None = None,
+        stick_stiffness: float | None = None,
+        friction_coefficient: float | None = None,
+        slip_viscosity: float | None = None,
     ):
         self.structure = Structure.parse(structure)
+        frictional = self.structure is Structure.FRICTIONAL
+        for name, value in (
+            ("stick_stiffness", stick_stiffness),
+            ("friction_coefficient", friction_coefficient),
+            ("slip_viscosity", slip_viscosity),
+        ):
+            if value is not None and not frictional:
+                raise ValueError(
+                    f"{name} is a parameter of the frictional foil, not of {self.structure.value}"
+                )
+        if stick_stiffness is not None:
+            check_positive("stick_stiffness", stick_stiffness)
+        if slip_viscosity is not None:
+            check_positive("slip_viscosity", slip_viscosity)
+        if friction_coefficient is not None and not (
+            isinstance(friction_coefficient, (int, float, np.floating))
+            and math.isfinite(friction_coefficient)
+            and friction_coefficient >= 0
+        ):
+            raise ValueError(f"friction_coefficient must be finite and >= 0, got {friction_coefficient!r}")
         if grid is None:
             grid = Grid()
         elif isinstance(grid, str):
@@ -292,6 +371,20 @@ class GFBModel:
             check_positive("foil_stiffness", foil_stiffness)
         self.params: NondimensionalParameters = self.bearing.nondimensional(foil_stiffness)
         self.layout = StateLayout(grid, self.structure)
+        kw = self.params.foil_stiffness
+        self.stick_stiffness = (
+            float(stick_stiffness if stick_stiffness is not None else kw) if frictional else 0.0
+        )
+        self.friction_coefficient = (
+            float(friction_coefficient if friction_coefficient is not None else DEFAULT_FRICTION_COEFFICIENT)
+            if frictional
+            else 0.0
+        )
+        self.slip_viscosity = (
+            float(slip_viscosity if slip_viscosity is not None else DEFAULT_SLIP_VISCOSITY)
+            if frictional
+            else 1.0
+        )
         phi = grid.phi
         self._kernel_parameters = KernelParameters(
             n_columns=grid.n_columns,
@@ -303,6 +396,9 @@ class GFBModel:
             gravity_parameter=self.params.gravity_parameter,
             sin_phi=np.sin(phi),
             cos_phi=np.cos(phi),
+            stick_stiffness=self.stick_stiffness,
+            friction_coefficient=self.friction_coefficient,
+            slip_viscosity=self.slip_viscosity,
         )
         self._kernel_args = self.kernel_args()
         self._H = np.empty(grid.n_columns)
@@ -313,12 +409,16 @@ class GFBModel:
         """The model as the compiled kernels see it (read-only: the packed arguments are cached)."""
         return self._kernel_parameters
 
-    def kernel_args(self, gravity_scale: float = 1.0) -> tuple:
+    def kernel_args(self, gravity_scale: float = 1.0, held_sliders: bool = False) -> tuple:
         """The parameter arguments of the compiled kernels (``rhs``, ``jacobian_blocks``,
-        ``film_thickness``), with the gravity G scaled by ``gravity_scale`` (load continuation)."""
+        ``film_thickness``), with the gravity G scaled by ``gravity_scale`` (load continuation).
+        ``held_sliders``: the frictional foil with its sliders held (slip viscosity infinite, S' = 0),
+        what the static equilibrium sees."""
         kp = self.kernel_parameters
         if gravity_scale != 1.0:
             kp = kp._replace(gravity_parameter=kp.gravity_parameter * gravity_scale)
+        if held_sliders:
+            kp = kp._replace(slip_viscosity=math.inf)
         return K.pack_parameters(*kp)
 
     # ------------------------------------------------------------------------------------------
@@ -333,9 +433,15 @@ class GFBModel:
         return self.params.load
 
     def __repr__(self) -> str:
+        friction = ""
+        if self.structure is Structure.FRICTIONAL:
+            friction = (
+                f"K_T={self.stick_stiffness:.4g}, mu_C={self.friction_coefficient:.4g}, "
+                f"eta={self.slip_viscosity:.4g}, "
+            )
         return (
             f"GFBModel(structure={self.structure.value!r}, grid='{self.grid}', "
-            f"K_W={self.foil_stiffness:.4g}, M={self.params.mass_parameter:.4g}, "
+            f"K_W={self.foil_stiffness:.4g}, {friction}M={self.params.mass_parameter:.4g}, "
             f"G={self.params.gravity_parameter:.4g})"
         )
 
@@ -361,12 +467,104 @@ class GFBModel:
         mn = K.rhs(s, float(bearing_number), float(foil_damping), *args, out, self._H, self._Hd)
         return out, mn
 
+    # ------------------------------------------------------------------------------------------
+    # static equilibrium of the frictional foil
+    def equilibrium_residual(
+        self,
+        s: np.ndarray,
+        bearing_number: float,
+        slider_reference: np.ndarray | None = None,
+        gravity_scale: float = 1.0,
+    ) -> tuple[np.ndarray, float]:
+        """The residual whose root is the static equilibrium, and ``min(min H, min P)`` (see
+        :meth:`rhs_and_minimum`).  ``k(s)`` itself except for the frictional foil's slider rows.
+
+        A frictional foil is at rest for every slider position with ``|F| <= F_c`` (a continuum of
+        equilibria; there ``S' = 0`` gives a singular Newton matrix).  The equilibrium is the one a
+        quasi-static loading reaches from the slider positions ``slider_reference`` (``S_0``): a slider
+        moves only as far as the Coulomb limit forces it, ``S = clamp(S_0, Q - F_c/K_T, Q + F_c/K_T)``,
+        which is exact for a load that grows monotonically in each column (the load continuation of
+        :func:`gfb_env.equilibrium.find_equilibrium`).  That residual replaces the slider rows.
+        """
+        if self.structure is not Structure.FRICTIONAL:
+            return self.rhs_and_minimum(s, bearing_number, 1.0, gravity_scale)
+        # the pressure rows with the sliders held (S' = 0, as at every admissible rest state): k itself
+        # has a kink in S' at the slip limit, where the sliders of a loaded equilibrium sit
+        s = self.layout.check(s)
+        r = np.empty_like(s)
+        mn = K.rhs(
+            s, float(bearing_number), 1.0, *self.kernel_args(gravity_scale, True), r, self._H, self._Hd
+        )
+        target, _ = self._slider_target(s, slider_reference)
+        r[self.layout.foil_slice] = self.layout.foil_state(s) - target
+        return r, mn
+
+    def equilibrium_jacobian(
+        self, s: np.ndarray, bearing_number: float, slider_reference: np.ndarray | None = None
+    ) -> sp.csr_matrix:
+        """Jacobian of :meth:`equilibrium_residual` (sparse CSR)."""
+        if self.structure is not Structure.FRICTIONAL:
+            return self.jacobian(s, bearing_number, 1.0)
+        J = self.jacobian(s, bearing_number, 1.0, _args=self.kernel_args(1.0, True))
+        L = self.layout
+        nc, nr = self.grid.n_columns, self.grid.n_rows
+        _, side = self._slider_target(s, slider_reference)
+        kw, kt, mu, dz = self.foil_stiffness, self.stick_stiffness, self.friction_coefficient, self.grid.dz
+        pm1 = self.axial_mean_pressure(s) - 1.0
+        # target = Q + side F_c / K_T on the lower/upper limit (side -1/+1), S_0 (side 0);
+        # dQ/dS = K_T/(K_W+K_T), dQ/dP_l = -dz/(K_W+K_T), dF_c/dP_l = mu dz sign(Pbar - 1)
+        d_s = np.where(side == 0, 1.0, 1.0 - kt / (kw + kt))
+        d_p = np.where(side == 0, 0.0, dz / (kw + kt) - side * mu * dz * np.sign(pm1) / kt)
+        foil_rows = L.n_pressure + np.arange(nc)
+        keep = np.ones(L.size)
+        keep[foil_rows] = 0.0
+        rows = np.concatenate([foil_rows, np.repeat(foil_rows, nr)])
+        cols = np.concatenate([foil_rows, np.arange(L.n_pressure)])
+        vals = np.concatenate([d_s, np.repeat(d_p, nr)])
+        new = sp.coo_matrix((vals, (rows, cols)), shape=J.shape)
+        return (sp.diags(keep) @ J + new).tocsr()
+
+    def linearised_states(self, s: np.ndarray, bearing_number: float) -> np.ndarray | None:
+        """State indices the linear stability analysis keeps (None: all of them).
+
+        Frictional foil: a stuck slider (``|F| < F_c``) has an identically zero row in ``dk/ds``
+        (S' = 0 exactly), so the Jacobian is block triangular and each stuck slider adds an eigenvalue
+        exactly 0 whose eigenvector is a shift of the slider: another equilibrium of the continuum
+        ``|F| <= F_c``, neutral rather than unstable.  Those states are dropped; the eigenvalues of the
+        rest are those of the foil with the stuck sliders held (stiffness K_W + K_T in those columns).
+        Sliders at or past the slip limit (within the kernels' ``SLIP_BRANCH_BAND``) keep their rows, on
+        the slip branch: at mu_C = 0 that is the free slider (the K_W foil); in general it is the tangent
+        of a slider that a further load would move, not of one being unloaded (which sticks at once)."""
+        if self.structure is not Structure.FRICTIONAL:
+            return None
+        J = self.jacobian(s, bearing_number, 1.0)
+        foil = np.arange(self.layout.n_pressure, self.layout.rotor_offset)
+        stuck = np.diff(J.indptr)[foil] == 0
+        return np.setdiff1d(np.arange(self.layout.size), foil[stuck])
+
+    def _slider_target(
+        self, s: np.ndarray, slider_reference: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Quasi-static slider position ``clamp(S_0, Q - F_c/K_T, Q + F_c/K_T)`` and which side is active
+        (-1 lower limit, +1 upper limit, 0 stuck at S_0).  With F_c = 0 (mu_C = 0) the slider follows Q."""
+        s = self.layout.check(s)
+        S0 = (
+            np.zeros(self.grid.n_columns) if slider_reference is None else np.asarray(slider_reference, float)
+        )
+        Q = self.foil_deflection(s)
+        half = self.friction_limit(s) / self.stick_stiffness
+        lower, upper = Q - half, Q + half
+        side = np.where(S0 <= lower, -1, np.where(S0 >= upper, 1, 0))
+        target = np.where(side < 0, lower, np.where(side > 0, upper, S0))
+        return target, side
+
     @property
     def sparse_offdiagonal_blocks(self) -> bool:
         """Whether the column-coupling Jacobian blocks (``Am``, ``Ap``) hold only their diagonal and
-        last column.  True for the rigid and viscoelastic foils; the elastic foil's Eq. (8) couples
-        every pressure of a column to its deflection, which fills them."""
-        return self.structure is not Structure.ELASTIC
+        last column.  True for the rigid and viscoelastic foils; the elastic foil's Eq. (8) (and the
+        frictional foil's, the same rank-one coupling) ties every pressure of a column to its
+        deflection, which fills them."""
+        return self.structure not in (Structure.ELASTIC, Structure.FRICTIONAL)
 
     def new_blocks(self) -> dict[str, np.ndarray]:
         """Preallocated arrays for :func:`jacobian_blocks` (used by the integrator)."""
@@ -386,6 +584,7 @@ class GFBModel:
         bearing_number: float,
         foil_damping: float = 1.0,
         blocks: dict[str, np.ndarray] | None = None,
+        _args: tuple | None = None,
     ) -> dict[str, np.ndarray]:
         s = self.layout.check(s)
         b = blocks if blocks is not None else self.new_blocks()
@@ -394,7 +593,7 @@ class GFBModel:
             s,
             float(bearing_number),
             float(foil_damping),
-            *self._kernel_args,
+            *(self._kernel_args if _args is None else _args),
             F,
             self._H,
             self._Hd,
@@ -432,9 +631,12 @@ class GFBModel:
         cols.append(np.tile(rot, 4))
         return np.concatenate(rows), np.concatenate(cols)
 
-    def jacobian(self, s: np.ndarray, bearing_number: float, foil_damping: float = 1.0) -> sp.csr_matrix:
-        """Analytic Jacobian dk/ds as a sparse CSR matrix (explicit zeros of the block pattern dropped)."""
-        b = self.jacobian_blocks(s, bearing_number, foil_damping)
+    def jacobian(
+        self, s: np.ndarray, bearing_number: float, foil_damping: float = 1.0, _args: tuple | None = None
+    ) -> sp.csr_matrix:
+        """Analytic Jacobian dk/ds as a sparse CSR matrix (explicit zeros of the block pattern dropped).
+        ``_args``: other kernel arguments (:meth:`kernel_args`), for :meth:`equilibrium_jacobian`."""
+        b = self.jacobian_blocks(s, bearing_number, foil_damping, _args=_args)
         data = np.concatenate([b[k].ravel() for k in ("Ad", "Ap", "Am", "Er", "Rr", "Srr")])
         rows, cols = self._pattern
         keep = data != 0.0
@@ -461,7 +663,30 @@ class GFBModel:
             return self.layout.foil_state(s).copy()
         if self.structure is Structure.ELASTIC:
             return -(self.axial_mean_pressure(s) - 1.0) / self.foil_stiffness
+        if self.structure is Structure.FRICTIONAL:
+            kt = self.stick_stiffness
+            return (kt * self.layout.foil_state(s) - (self.axial_mean_pressure(s) - 1.0)) / (
+                self.foil_stiffness + kt
+            )
         return np.zeros(self.grid.n_columns)
+
+    def friction_force(self, s: np.ndarray) -> np.ndarray:
+        """Frictional foil: the Jenkins element's force ``F = K_T (Q - S)`` per column."""
+        self._require_frictional("friction_force")
+        return self.stick_stiffness * (self.foil_deflection(s) - self.layout.foil_state(s))
+
+    def friction_limit(self, s: np.ndarray) -> np.ndarray:
+        """Frictional foil: the Coulomb limit ``F_c = mu_C |Pbar - 1|`` per column."""
+        self._require_frictional("friction_limit")
+        return self.friction_coefficient * np.abs(self.axial_mean_pressure(s) - 1.0)
+
+    def stuck(self, s: np.ndarray) -> np.ndarray:
+        """Frictional foil: which sliders stick (``|F| < F_c``, so S' = 0 exactly) per column."""
+        return np.abs(self.friction_force(s)) < self.friction_limit(s)
+
+    def _require_frictional(self, what: str) -> None:
+        if self.structure is not Structure.FRICTIONAL:
+            raise ValueError(f"{what} is defined for the frictional foil only, not {self.structure.value}")
 
     def pressure_field(self, s: np.ndarray) -> np.ndarray:
         """Pressure on all rows including the ambient edges, shape ``(N_phi-1, N_Z)``."""

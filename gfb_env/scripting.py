@@ -2,9 +2,10 @@
 experiments, the training and the benchmark scripts.  Public: a script of yours may use them too.
 
 - :class:`OneLineParser`: argparse with one-line usage errors and exit code 2.
-- argument checks, each naming its option: :func:`positive`, :func:`finite`, :func:`in_range`,
-  :func:`int_range`, :func:`float_list` (comma lists, empty items refused), :func:`grid_type`
-  (``NPHIxNZ``), :func:`bearing_file` (a bearing file or the name of a shipped one, :func:`load_bearing`);
+- argument checks, each naming its option: :func:`positive`, :func:`non_negative`, :func:`finite`,
+  :func:`in_range`, :func:`int_range`, :func:`float_list` (comma lists, empty items refused),
+  :func:`grid_type` (``NPHIxNZ``), :func:`bearing_file` (a bearing file or the name of a shipped one,
+  :func:`load_bearing`);
 - output folders checked before any work: :func:`check_output_dir`; JSON out: :func:`write_json`;
 - option groups of the ``gfb`` subcommands and their readers: :func:`add_model_options`,
   :func:`model_from_args`, :func:`add_speed_options`, :func:`bearing_number_from_args`,
@@ -52,9 +53,11 @@ __all__ = [
     "check_perturbation",
     "finite",
     "float_list",
+    "friction_parameters",
     "grid_type",
     "in_range",
     "int_range",
+    "non_negative",
     "load_bearing",
     "model_from_args",
     "OneLineParser",
@@ -84,6 +87,18 @@ def positive(name: str):
             raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
         if not (math.isfinite(v) and v > 0):
             raise argparse.ArgumentTypeError(f"{name} must be finite and positive, got {text!r}")
+        return v
+
+    return conv
+
+
+def non_negative(name: str):
+    """argparse type: a finite float >= 0, with an error naming the option."""
+
+    def conv(text: str) -> float:
+        v = finite(name)(text)
+        if v < 0:
+            raise argparse.ArgumentTypeError(f"{name} must be >= 0, got {text!r}")
         return v
 
     return conv
@@ -290,8 +305,9 @@ def add_model_options(p: argparse.ArgumentParser, damping: bool = True) -> None:
         "--structure",
         choices=[s.value for s in Structure],
         default="viscoelastic",
-        help="foil model: rigid (Q = 0), elastic (K_W Q = -(Pbar - 1), Eq. 6-8) or viscoelastic "
-        "(D_W Q' + K_W Q = -(Pbar - 1), Eq. 9-10). Default: %(default)s",
+        help="foil model: rigid (Q = 0), elastic (K_W Q = -(Pbar - 1), Eq. 6-8), viscoelastic "
+        "(D_W Q' + K_W Q = -(Pbar - 1), Eq. 9-10) or frictional (K_W in parallel with a stick stiffness "
+        "K_T and a Coulomb slider, --stick-stiffness, --friction-coefficient). Default: %(default)s",
     )
     p.add_argument(
         "--foil-stiffness",
@@ -300,6 +316,30 @@ def add_model_options(p: argparse.ArgumentParser, damping: bool = True) -> None:
         metavar="K",
         help="nondimensional foil stiffness K_W (default: the Walowit-Anno value of the bearing's bump "
         "foil geometry; Table 1: 2.337)",
+    )
+    p.add_argument(
+        "--stick-stiffness",
+        type=positive("--stick-stiffness"),
+        default=None,
+        metavar="KT",
+        help="frictional foil only: nondimensional stick stiffness K_T of the Jenkins element "
+        "(default: equal to K_W)",
+    )
+    p.add_argument(
+        "--friction-coefficient",
+        type=non_negative("--friction-coefficient"),
+        default=None,
+        metavar="MU",
+        help="frictional foil only: Coulomb coefficient mu_C, F_c = mu_C |Pbar - 1| (default 0.1; "
+        "identified bump-foil values are about 0.05-0.2)",
+    )
+    p.add_argument(
+        "--slip-viscosity",
+        type=positive("--slip-viscosity"),
+        default=None,
+        metavar="ETA",
+        help="frictional foil only: regularisation eta of the slider law, eta S' = sign(F) max(|F| - F_c, 0) "
+        "(default 1e-3)",
     )
     if damping:
         p.add_argument(
@@ -330,10 +370,43 @@ def add_speed_options(p: argparse.ArgumentParser, required: bool = True) -> None
     g.add_argument("--speed-rpm", type=positive("--speed-rpm"), metavar="N", help="rotor speed in rpm")
 
 
+#: The frictional foil's options of :func:`add_model_options` and the GFBModel arguments they set.
+FRICTION_OPTIONS = {
+    "--stick-stiffness": "stick_stiffness",
+    "--friction-coefficient": "friction_coefficient",
+    "--slip-viscosity": "slip_viscosity",
+}
+
+
 def model_from_args(args: argparse.Namespace) -> GFBModel:
+    """The model of :func:`add_model_options`; the frictional options are refused (``ValueError`` naming
+    the option) with any other ``--structure``."""
+    friction = {name: getattr(args, name, None) for name in FRICTION_OPTIONS.values()}
+    if args.structure != Structure.FRICTIONAL:
+        for option, name in FRICTION_OPTIONS.items():
+            if friction[name] is not None:
+                raise ValueError(
+                    f"{option} is an option of --structure frictional only, not {args.structure}"
+                )
+        friction = {}
     return GFBModel(
-        args.structure, grid=args.grid, bearing=bearing_from_args(args), foil_stiffness=args.foil_stiffness
+        args.structure,
+        grid=args.grid,
+        bearing=bearing_from_args(args),
+        foil_stiffness=args.foil_stiffness,
+        **friction,
     )
+
+
+def friction_parameters(model: GFBModel) -> dict[str, float]:
+    """The frictional foil's parameters by name (empty for the other structures), for the reports."""
+    if model.structure is not Structure.FRICTIONAL:
+        return {}
+    return {
+        "stick_stiffness": model.stick_stiffness,
+        "friction_coefficient": model.friction_coefficient,
+        "slip_viscosity": model.slip_viscosity,
+    }
 
 
 def bearing_from_args(args: argparse.Namespace) -> BearingParameters:

@@ -90,6 +90,9 @@ def jacobian_eigenvalues(
     Raises ``ValueError`` when the state size exceeds :data:`MAX_EIGEN_STATE_SIZE`."""
     check_eigen_size(model)
     J = model.jacobian(state, bearing_number, foil_damping).toarray()
+    keep = model.linearised_states(state, bearing_number)  # frictional: stuck sliders are neutral
+    if keep is not None:
+        J = J[np.ix_(keep, keep)]
     ev = sla.eigvals(J, overwrite_a=True, check_finite=False)
     return ev[np.argsort(-ev.real, kind="stable")]
 

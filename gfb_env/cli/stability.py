@@ -22,6 +22,7 @@ from gfb_env.scripting import (
     add_out_option,
     check_eigen_grid,
     float_list,
+    friction_parameters,
     grid_type,
     int_range,
     model_from_args,
@@ -81,10 +82,14 @@ def cmd_critical(args: argparse.Namespace) -> int:
     cp = _critical(args, model)
     d = cp.as_dict()
     d["wall_time_s"] = time.perf_counter() - t0
+    friction = friction_parameters(model)
+    d.update(friction)
     if args.json:
         print(jsonio.dumps(d))
     else:
         print(f"{cp.structure} foil, K_W={cp.foil_stiffness:.4g}, D_W={cp.foil_damping:.4g}, grid {cp.grid}")
+        if friction:
+            print("  " + ", ".join(f"{k}={v:.4g}" for k, v in friction.items()))
         print(f"  critical bearing number  Lambda_c = {cp.critical_bearing_number:.5f}")
         print(f"  critical speed                   = {cp.critical_speed_rpm:.0f} rpm")
         print(f"  whirl frequency ratio Im/Lambda  = {cp.whirl_frequency_ratio:.4f}")

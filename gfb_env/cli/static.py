@@ -11,6 +11,7 @@ from gfb_env.scripting import (
     add_model_options,
     add_speed_options,
     bearing_number_from_args,
+    friction_parameters,
     model_from_args,
     positive,
     print_table,
@@ -62,6 +63,7 @@ def cmd_equilibrium(args: argparse.Namespace) -> int:
     lam = bearing_number_from_args(args, model.bearing)
     s = find_equilibrium(model, lam)
     out = equilibrium_summary(model, s, lam)
+    out.update(friction_parameters(model))
     if args.json:
         print(jsonio.dumps(out))
     else:

@@ -130,7 +130,7 @@ class _BatchWorkspace:
         self.stacked = BatchArrays(
             calls=z(N, CALL_DTYPE),
             y=z((N, 5, n)),
-            ip=z((N, 3), np.int64), fp=z((N, 4)), sn=z((N, nc)), cs=z((N, nc)),
+            ip=z((N, 3), np.int64), fp=z((N, K.N_FLOAT_PARAMETERS)), sn=z((N, nc)), cs=z((N, nc)),
             Ad=z((N, nc, m, m)), Ap=z((N, nc, m, m)), Am=z((N, nc, m, m)), Er=z((N, nc, m, 4)),
             Rr=z((N, nc, 4, m)), Srr=z((N, 4, 4)),
             Dlu=z((N, nc, m, m)), Dpiv=z((N, nc, m), np.int64), Uhat=z((N, nc, m, m)),

@@ -6,15 +6,15 @@ import math
 
 import numpy as np
 import pytest
+from conftest import assert_refused_at_once, random_admissible_state
 from scipy.integrate import solve_ivp
+from test_model import fd_jacobian
 
 from gfb_env import _kernels as K
 from gfb_env.analysis.stability import critical_bearing_number, jacobian_eigenvalues
 from gfb_env.equilibrium import find_equilibrium
 from gfb_env.integrator import TrapezoidalIntegrator
 from gfb_env.model import GFBModel, Structure
-from tests.conftest import assert_refused_at_once, random_admissible_state
-from tests.test_model import fd_jacobian
 
 KW, KT = 1.0, 0.5
 

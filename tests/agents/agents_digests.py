@@ -22,7 +22,10 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
-from integrator_digests import PLATFORM_KEY, digest
+
+# the digest helpers live beside the integrator's tests (tests/integrator/integrator_digests.py)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "integrator"))
+from integrator_digests import PLATFORM_KEY, digest  # noqa: E402
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
 

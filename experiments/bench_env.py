@@ -18,10 +18,14 @@ The last line is JSON (``single_steps_per_s``, ``async_vector_steps_per_s`` with
 
     OMP_NUM_THREADS=1 .venv/bin/python -m gfb_experiments.bench_env [--quick] [--env-steps 800]
         [--ppo-steps 20000] [--profile]
+    OMP_NUM_THREADS=1 .venv/bin/python -m gfb_experiments.bench_env --against OLD_CHECKOUT [--rounds 3]
+        [--env-steps 800] [--ppo-steps 8192]      # this checkout against another, alternating
+                                                   # (gfb_experiments.bench_against; issue 20)
 """
 
 from __future__ import annotations
 
+import json
 import os
 import time
 from pathlib import Path
@@ -365,6 +369,15 @@ def main() -> None:
     ap.add_argument("--profile", action="store_true", help="also profile single-env steps near equilibrium")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, default=Path("results/bench_env"), help="output folder")
+    ap.add_argument(
+        "--against",
+        type=Path,
+        default=None,
+        metavar="OLD_CHECKOUT",
+        help="compare with another checkout instead, alternating in one run (gfb_experiments.bench_against; "
+        "issue 20's reference is 09cb50e: git worktree add /tmp/base 09cb50e)",
+    )
+    ap.add_argument("--rounds", type=int, default=3, help="with --against: alternations (median reported)")
     args = ap.parse_args()
     for name in ("steps", "env_steps", "ppo_steps"):
         v = getattr(args, name)
@@ -377,6 +390,23 @@ def main() -> None:
             ap.error(str(exc))
     env_steps = args.env_steps if args.env_steps is not None else (160 if args.quick else 800)
     ppo_steps = args.ppo_steps if args.ppo_steps is not None else (2048 if args.quick else 20_000)
+    if args.against is not None:
+        from gfb_experiments import bench_against
+
+        if args.rounds < 1:
+            ap.error(f"--rounds must be positive, got {args.rounds}")
+        here = Path(__file__).resolve().parents[1]
+        try:
+            bench_against.check_checkout(args.against)
+            bench_against.check_checkout(here)
+        except ValueError as exc:
+            ap.error(f"{exc} (--against compares two checkouts: run it from one)")
+        summary = bench_against.against(
+            args.against, here, args.rounds, env_steps, ppo_steps,
+            args.seed, args.out,
+        )  # fmt: skip
+        print(json.dumps({k: v for k, v in summary.items() if k not in ("rounds_raw",)}))
+        return
     sync_ns = (2, 16) if args.quick else VECTOR_NS
 
     def log(line: str) -> None:

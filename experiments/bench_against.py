@@ -1,0 +1,202 @@
+"""This checkout's environments against another checkout's, alternating in one run (issue 20's yardstick).
+
+``python -m gfb_experiments.bench_env --against OLD_CHECKOUT`` runs this.  Each measurement runs in a fresh
+subprocess whose ``gfb_env`` and ``gfb_agents`` come from one checkout (a folder of links to the checkout's
+``gfb_env/`` and ``agents/`` put first on ``PYTHONPATH``; the numba caches are warmed outside the timing),
+alternating this checkout and OLD_CHECKOUT ``--rounds`` times, so that the slow drift of a shared machine's
+load falls on both alike; the median of the rounds is reported.  Both sides play the same public
+interface on their own code of the v1 tasks: ``gymnasium.make_vec(id, num_envs=16)`` (the native vector
+env) near equilibrium (the start of RunUp-v1, speed held, D_W = 1) and in a developed whirl (the start of
+WhirlRecovery-v1, speed and the whirl's damping held), one env near equilibrium, Gymnasium's
+AsyncVectorEnv with 2 workers, and PPO (the same hyperparameters on both sides: the zoo's RunUp-v1 entry of
+this checkout, VecNormalize, one torch thread) on the native vector env through the SB3 adapter.
+
+The reference of issue 20 is commit 09cb50e (``git worktree add /tmp/base 09cb50e``).  The last line is
+JSON: ``native_vector_steps_per_s``, ``against_native_vector_steps_per_s``, ``speedup_vs_against`` (near
+equilibrium), ``whirl_speedup_vs_against``, ``single_speedup_vs_against``, ``async_speedup_vs_against``,
+``ppo_env_steps_per_s``, ``ppo_1m_steps_minutes`` and both sides' every median, also written to
+``results/bench_env/against.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+#: what one subprocess measures (env steps per second); ``{arg}`` are filled from JSON
+CHILD = r"""
+import json, os, sys, time
+import numpy as np
+import gymnasium as gym
+import gfb_env.envs  # noqa: F401
+a = json.loads(sys.argv[1])
+kind, steps, seed = a["kind"], a["env_steps"], a["seed"]
+
+def hold(env_id):
+    if "WhirlRecovery" not in env_id:
+        return np.zeros(2, np.float32)
+    env = gym.make(env_id)
+    u = env.unwrapped
+    env.reset(seed=seed)
+    act = np.array([0.0, u.action_from_damping(u.whirl_damping)], np.float32)
+    env.close()
+    return act
+
+def vector_rate(envs, action, n_steps):
+    n = envs.num_envs
+    acts = np.tile(action, (n, 1))
+    envs.reset(seed=seed)
+    envs.step(acts)  # warm-up: numba caches, constants
+    batches = max(3, n_steps // n)
+    t0 = time.perf_counter()
+    for _ in range(batches):
+        envs.step(acts)
+    return n * batches / (time.perf_counter() - t0)
+
+if kind in ("native", "whirl"):
+    env_id = "gfb_env/RunUp-v1" if kind == "native" else "gfb_env/WhirlRecovery-v1"
+    envs = gym.make_vec(env_id, num_envs=16)
+    rate = vector_rate(envs, hold(env_id), steps if kind == "native" else max(48, steps // 2))
+    envs.close()
+elif kind == "async":
+    envs = gym.make_vec("gfb_env/RunUp-v1", num_envs=2, vectorization_mode="async")
+    rate = vector_rate(envs, hold("gfb_env/RunUp-v1"), steps)
+    envs.close()
+elif kind == "single":
+    env = gym.make("gfb_env/RunUp-v1")
+    act = hold("gfb_env/RunUp-v1")
+    env.reset(seed=seed)
+    env.step(act)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        _, _, term, trunc, _ = env.step(act)
+        if term or trunc:
+            env.reset()
+    rate = steps / (time.perf_counter() - t0)
+    env.close()
+elif kind == "ppo":
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+    try:
+        from gfb_agents.learned.vec_env import GFBSB3VecEnv
+    except ImportError:  # checkouts before issue 18
+        from gfb_agents.vec_env import GFBSB3VecEnv
+    torch.set_num_threads(1)
+    hp = a["ppo"]
+    venv = VecNormalize(VecMonitor(GFBSB3VecEnv(gym.make_vec("gfb_env/RunUp-v1", num_envs=hp["n_envs"]))),
+                        gamma=hp["kwargs"].get("gamma", 0.99), **hp["normalize"])
+    venv.seed(seed)
+    model = PPO(hp["policy"], venv, seed=seed, device="cpu", verbose=0, **hp["kwargs"])
+    model.learn(total_timesteps=int(hp["n_envs"]) * int(hp["kwargs"]["n_steps"]))  # warm-up rollout
+    t0 = time.perf_counter()
+    n0 = model.num_timesteps
+    model.learn(total_timesteps=steps, reset_num_timesteps=False)
+    rate = (model.num_timesteps - n0) / (time.perf_counter() - t0)
+    venv.close()
+print(json.dumps({"rate": rate, "load": os.getloadavg()[0]}))
+"""
+
+KINDS = ("native", "whirl", "single", "async", "ppo")
+
+
+def _ppo_settings() -> dict:
+    """The zoo's RunUp-v1 PPO entry of this checkout, as plain JSON (both sides train with it)."""
+    from gfb_agents.learned.train import _split_hyperparams, load_hyperparams
+
+    zoo, kwargs = _split_hyperparams(load_hyperparams("ppo", "gfb_env/RunUp-v1"))
+    kwargs = {k: v for k, v in kwargs.items() if isinstance(v, (int, float, str, bool, dict, list))}
+    return {"policy": zoo["policy"], "n_envs": 16, "normalize": zoo["normalize"], "kwargs": kwargs}
+
+
+def _links(checkout: Path, root: Path) -> Path:
+    """A folder with ``gfb_env`` -> checkout/gfb_env, ``gfb_agents`` -> checkout/agents (the import
+    names of that checkout's code, whatever is installed)."""
+    d = Path(tempfile.mkdtemp(prefix="gfb-bench-", dir=root))
+    (d / "gfb_env").symlink_to(checkout.resolve() / "gfb_env")
+    (d / "gfb_agents").symlink_to(checkout.resolve() / "agents")
+    return d
+
+
+def check_checkout(path: Path) -> Path:
+    """``path`` must be a checkout of this project (a ``gfb_env/envs`` and an ``agents`` folder)."""
+    if not (path / "gfb_env" / "envs").is_dir() or not (path / "agents").is_dir():
+        raise ValueError(f"--against {path}: not a gfb-env checkout (no gfb_env/envs and agents/ there)")
+    return path
+
+
+def _run(links: Path, args: dict) -> dict:
+    env = {**os.environ, "PYTHONPATH": str(links), "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+    out = subprocess.run(
+        [sys.executable, "-c", CHILD, json.dumps(args)], env=env, capture_output=True, text=True, check=False
+    )
+    if out.returncode != 0:
+        raise RuntimeError(f"benchmark child ({args['kind']}) failed:\n{out.stderr[-2000:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _alternate(sides: dict, rounds: int, env_steps: int, ppo_steps: int, seed: int, log) -> dict:
+    """``{side: {kind: [rate per round]}}``: every kind, both sides, alternating their order per round."""
+    ppo = _ppo_settings()
+    rates: dict = {side: {k: [] for k in KINDS} for side in sides}
+    kinds = [k for k in KINDS if k != "ppo" or ppo_steps > 0]
+    for side in sides:  # warm each checkout's numba caches outside the timing
+        _run(sides[side], {"kind": "single", "env_steps": 3, "seed": seed})
+    for r in range(rounds):
+        for kind in kinds:
+            order = ("old", "new") if r % 2 == 0 else ("new", "old")
+            for side in order:
+                steps = ppo_steps if kind == "ppo" else env_steps
+                res = _run(sides[side], {"kind": kind, "env_steps": steps, "seed": seed, "ppo": ppo})
+                rates[side][kind].append(res["rate"])
+                log(
+                    f"round {r + 1}/{rounds} {kind:7s} {side}: {res['rate']:9.1f} env steps/s "
+                    f"(load {res['load']:.2f})"
+                )
+    return rates
+
+
+def against(
+    old: Path,
+    new: Path,
+    rounds: int = 3,
+    env_steps: int = 800,
+    ppo_steps: int = 8192,
+    seed: int = 0,
+    out: Path | None = Path("results/bench_env"),
+    log=print,
+) -> dict:
+    """The alternating comparison (module docstring); returns the summary (also ``out/against.json``)."""
+    with tempfile.TemporaryDirectory(prefix="gfb-against-") as scratch:
+        sides = {"new": _links(new, Path(scratch)), "old": _links(old, Path(scratch))}
+        rates = _alternate(sides, rounds, env_steps, ppo_steps, seed, log)
+    med = {side: {k: statistics.median(v) for k, v in d.items() if v} for side, d in rates.items()}
+    summary = {
+        "against": str(old),
+        "rounds": rounds,
+        "env_steps": env_steps,
+        "ppo_steps": ppo_steps,
+        "native_vector_steps_per_s": med["new"]["native"],
+        "against_native_vector_steps_per_s": med["old"]["native"],
+        "speedup_vs_against": med["new"]["native"] / med["old"]["native"],
+        "whirl_speedup_vs_against": med["new"]["whirl"] / med["old"]["whirl"],
+        "single_speedup_vs_against": med["new"]["single"] / med["old"]["single"],
+        "async_speedup_vs_against": med["new"]["async"] / med["old"]["async"],
+        "medians": med,
+        "rounds_raw": rates,
+        "load_1min_at_end": os.getloadavg()[0],
+    }
+    if ppo_steps > 0:
+        summary["ppo_env_steps_per_s"] = med["new"]["ppo"]
+        summary["against_ppo_env_steps_per_s"] = med["old"]["ppo"]
+        summary["ppo_speedup_vs_against"] = med["new"]["ppo"] / med["old"]["ppo"]
+        summary["ppo_1m_steps_minutes"] = 1e6 / med["new"]["ppo"] / 60.0
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "against.json").write_text(json.dumps(summary, indent=1) + "\n")
+    return summary

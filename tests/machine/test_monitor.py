@@ -56,14 +56,21 @@ def test_exact_recovery_of_a_noise_free_signal_with_a_ramping_speed():
     assert r.revolutions == pytest.approx((th[-1] - th[0]) / (2 * math.pi), rel=1e-14)
     assert r.running_speed_rpm == pytest.approx(om * 60 / (2 * math.pi), rel=1e-14)
     assert 1.02 < r.running_speed_rpm / (F_HZ * 60) < 1.03
-    # 0.45x is one of the band's columns: 1x, mean, trend and the band level are exact
-    assert r.x.synchronous_um_pp == pytest.approx(2.0, rel=1e-10)
-    assert r.x.synchronous_phase_lag_deg == pytest.approx(70.0, abs=1e-8)
-    assert r.x.subsynchronous_um_rms == pytest.approx(rms(s), rel=1e-10)
+    # 1x under a speed ramp, mean and trend: exact up to the sub-synchronous part not in the band's
+    # columns (0.45x lies between 0.383x and 0.467x); the level to its coverage (a few per cent)
+    assert r.x.synchronous_um_pp == pytest.approx(2.0, rel=2e-3)
+    assert r.x.synchronous_phase_lag_deg == pytest.approx(70.0, abs=0.1)
+    assert r.x.subsynchronous_um_rms == pytest.approx(rms(s), rel=0.03)
     assert r.x.subsynchronous_ratio == pytest.approx(0.45, abs=2e-3)
-    assert r.x.mean_um == pytest.approx(3.0 + 100.0 * 0.5 * (t[0] + t[-1]), rel=1e-10)
-    assert r.x.trend_um_per_s == pytest.approx(100.0, rel=1e-8)
-    assert r.x.residual_um_rms < 1e-10 and r.x.second_harmonic_um_pp < 1e-10
+    assert r.x.mean_um == pytest.approx(3.0 + 100.0 * 0.5 * (t[0] + t[-1]), rel=1e-3)
+    assert r.x.trend_um_per_s == pytest.approx(100.0, rel=0.05)
+    assert r.x.residual_um_rms < 0.01 * rms(s) and r.x.second_harmonic_um_pp < 2e-3
+    # on a band column (0.3833x, 4 pairs over 0.30-0.55) the fit is exact
+    x2, s2 = synthetic(t, th, om, sub_ratio=0.3 + 0.25 / 3)
+    r2 = VibrationMonitor().measure(t, x2, x2, th).x
+    assert r2.synchronous_um_pp == pytest.approx(2.0, rel=1e-10) and r2.residual_um_rms < 1e-10
+    assert r2.synchronous_phase_lag_deg == pytest.approx(70.0, abs=1e-8)
+    assert r2.trend_um_per_s == pytest.approx(100.0, rel=1e-8)
     assert r.x.direct_um_pp == pytest.approx(x.max() - x.min(), rel=1e-15)
     # exact probe: no noise, no predicted scatter
     assert r.x.synchronous_um_pp_std == 0.0 and r.x.subsynchronous_noise_floor_um_rms == 0.0
@@ -83,20 +90,23 @@ def test_a_pure_subsynchronous_signal_has_no_1x_and_its_frequency_is_found():
         r = VibrationMonitor().measure(t, s, s, th)
         assert r.x.synchronous_um_pp < 0.02  # 1 % of the whirl's 2 um pp (finite-record leakage)
         assert r.x.subsynchronous_ratio == pytest.approx(ratio, abs=2e-3)
-    _, s = synthetic(t, th, om, amp=0.0, sub=1.0, sub_ratio=0.45)  # on a column: exactly none
+    _, s = synthetic(t, th, om, amp=0.0, sub=1.0, sub_ratio=0.3 + 0.25 / 3)  # on a column: exactly none
     assert VibrationMonitor().measure(t, s, s, th).x.synchronous_um_pp < 1e-10
 
 
-def test_band_captures_every_ratio_in_it_and_documents_its_skirts():
-    t, th, om = record()
+@pytest.mark.parametrize("revs", [4.3, 6.0, 6.7])  # 60 tau at Lambda 0.45 (RunUp-v1's start) to 0.70
+def test_band_captures_every_ratio_in_it_and_never_exceeds_the_signal(revs):
+    t, th, om = record(revs=revs)
     mon = VibrationMonitor()
-    for ratio in np.linspace(0.35, 0.55, 21):
-        _, s = synthetic(t, th, om, amp=0.0, sub=1.0, sub_ratio=ratio)
-        assert mon.measure(t, s, s, th).x.subsynchronous_um_rms == pytest.approx(rms(s), rel=0.06), ratio
-    # far outside the band little passes (the skirts of a 6-revolution record: docs/machine.md)
-    for ratio, most in ((0.1, 0.3), (0.8, 0.35), (1.5, 0.2), (3.0, 0.1)):
-        _, s = synthetic(t, th, om, amp=0.0, sub=1.0, sub_ratio=ratio)
-        assert mon.measure(t, s, s, th).x.subsynchronous_um_rms < most * rms(s), ratio
+    for ratio in np.linspace(0.30, 0.55, 26):
+        for phase in (0.0, 1.0, 2.0):
+            s = np.sin(ratio * om * t + phase)
+            level = mon.measure(t, s, s, th).x.subsynchronous_um_rms
+            assert 0.90 * rms(s) < level <= rms(s) * (1 + 1e-12), (ratio, phase)
+    # far outside the band little passes (the skirts of a short record: docs/machine.md), never more
+    for ratio, most in ((0.1, 0.7), (1.5, 0.5), (3.0, 0.2), (0.7, 1.0), (0.8, 1.0)):
+        s = np.sin(ratio * om * t + 0.4)
+        assert mon.measure(t, s, s, th).x.subsynchronous_um_rms <= most * rms(s), ratio
 
 
 def test_recovery_with_noise_is_within_the_predicted_scatter():
@@ -108,7 +118,8 @@ def test_recovery_with_noise_is_within_the_predicted_scatter():
     p = r.x
     assert abs(p.synchronous_um_pp - 2.0) < 4 * p.synchronous_um_pp_std
     assert abs(p.synchronous_phase_lag_deg - 70.0) < 4 * p.synchronous_phase_lag_deg_std
-    expected = math.hypot(rms(s), p.subsynchronous_noise_floor_um_rms)  # E[level^2] = true^2 + floor^2
+    clean = VibrationMonitor().measure(t, x, x, th).x.subsynchronous_um_rms
+    expected = math.hypot(clean, p.subsynchronous_noise_floor_um_rms)  # E[level^2] = true^2 + floor^2
     assert abs(p.subsynchronous_um_rms - expected) < 4 * p.subsynchronous_um_rms_std
     assert p.subsynchronous_ratio == pytest.approx(0.45, abs=0.02)
     # the formula of the docs: sigma_A ~ sigma sqrt(2 / N) zero-to-peak
@@ -133,14 +144,15 @@ def test_noise_predictions_agree_with_monte_carlo():
     assert amp.std() == pytest.approx(ref.synchronous_um_pp_std, rel=0.2)
     assert lag.std() == pytest.approx(ref.synchronous_phase_lag_deg_std, rel=0.2)
     assert level.std() == pytest.approx(ref.subsynchronous_um_rms_std, rel=0.2)
+    assert ref.subsynchronous_um_rms_std == pytest.approx(SIGMA / math.sqrt(N), rel=1e-12)
     assert np.mean(level**2) == pytest.approx(
-        rms(s) ** 2 + ref.subsynchronous_noise_floor_um_rms**2, rel=0.02
+        ref.subsynchronous_um_rms**2 + ref.subsynchronous_noise_floor_um_rms**2, rel=0.02
     )
     assert abs(amp.mean() - 2.0) < 3 * ref.synchronous_um_pp_std / math.sqrt(200)  # 1x is unbiased
     # pure noise: the level's rms is the floor; the 1x amplitude is Rayleigh-distributed
     noise = [mon.measure(t, *(SIGMA * rng.standard_normal((2, N))), th, noise_um=SIGMA) for _ in range(200)]
     floor = noise[0].x.subsynchronous_noise_floor_um_rms
-    assert floor == pytest.approx(SIGMA * math.sqrt(6 / N), rel=0.1)  # ~ sigma sqrt(2K / N)
+    assert floor == pytest.approx(SIGMA * math.sqrt(8 / N), rel=1e-12)  # sigma sqrt(2K / N), K = 4
     assert rms([d.x.subsynchronous_um_rms for d in noise]) == pytest.approx(floor, rel=0.2)
     assert all(d.x.synchronous_phase_lag_deg_std <= math.degrees(math.pi / math.sqrt(3)) for d in noise)
     # the direct peak-to-peak is biased up by the noise (the values docs/machine.md quotes)
@@ -169,8 +181,11 @@ def test_probes_readings_are_the_geometry_plus_bias_plus_noise():
 def test_keyphasor_angle_shifts_the_phase_lag():
     t, th, om = record()
     x, _ = synthetic(t, th, om)
+    lag0 = VibrationMonitor().measure(t, x, x, th).x.synchronous_phase_lag_deg
     lag = VibrationMonitor(keyphasor_angle_deg=30.0).measure(t, x, x, th).x.synchronous_phase_lag_deg
-    assert lag == pytest.approx(40.0, abs=1e-8)  # the key passes 30 deg later: the peak lags it 30 deg less
+    assert lag0 == pytest.approx(70.0, abs=0.1) and lag == pytest.approx(
+        lag0 - 30.0, abs=1e-8
+    )  # the key passes 30 deg later: the peak lags it 30 deg less
 
 
 @pytest.mark.parametrize(
@@ -198,7 +213,8 @@ def test_bad_records_are_refused_by_name():
     t, th, om = record()
     x, _ = synthetic(t, th, om)
     mon = VibrationMonitor()
-    with pytest.raises(ValueError, match="time_s must have at least 24"):
+    assert mon.min_samples == 28  # twice the 14 columns
+    with pytest.raises(ValueError, match="time_s must have at least 28"):
         mon.measure(t[:10], x[:10], x[:10], th[:10])
     with pytest.raises(ValueError, match="y_um must have as many"):
         mon.measure(t, x, x[:-1], th)
@@ -222,7 +238,9 @@ def test_degenerate_records_give_no_nan():
     r = mon.measure(t, x, x, np.full(N, 1.0), noise_um=SIGMA)
     assert not r.valid and r.revolutions == 0.0 and r.running_speed_rpm == 0.0
     assert r.x.synchronous_um_pp == 0.0 and r.x.subsynchronous_um_rms == 0.0
-    assert r.x.direct_um_pp == pytest.approx(x.max() - x.min()) and r.x.subsynchronous_ratio == 0.45
+    assert r.x.direct_um_pp == pytest.approx(x.max() - x.min()) and r.x.subsynchronous_ratio == pytest.approx(
+        0.425
+    )
     # just below min_revolutions
     t2, th2, _ = record(revs=1.9, ramp=0.0)
     assert not mon.measure(t2, x, x, th2).valid

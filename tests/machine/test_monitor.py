@@ -129,6 +129,18 @@ def test_recovery_with_noise_is_within_the_predicted_scatter():
     )
 
 
+@pytest.mark.parametrize(("revs", "most"), [(3.7, 2.8), (4.3, 1.4), (6.0, 1.1), (8.0, 1.05)])
+def test_1x_noise_approaches_the_long_record_formula(revs, most):
+    # sigma_pp = 2 sigma sqrt(2 / N) for many revolutions; a short record pays for the band columns
+    t, th, _ = record(revs=revs, ramp=0.0)
+    for lag in range(0, 360, 15):
+        x = np.cos(th - math.radians(lag))
+        ratio = VibrationMonitor().measure(t, x, x, th, noise_um=SIGMA).x.synchronous_um_pp_std / (
+            2 * SIGMA * math.sqrt(2 / N)
+        )
+        assert 0.99 < ratio < most, (revs, lag)
+
+
 def test_noise_predictions_agree_with_monte_carlo():
     t, th, om = record()
     x, s = synthetic(t, th, om)
@@ -241,9 +253,10 @@ def test_degenerate_records_give_no_nan():
     assert r.x.direct_um_pp == pytest.approx(x.max() - x.min()) and r.x.subsynchronous_ratio == pytest.approx(
         0.425
     )
-    # just below min_revolutions
-    t2, th2, _ = record(revs=1.9, ramp=0.0)
+    # just below min_revolutions (3.5)
+    t2, th2, _ = record(revs=3.45, ramp=0.0)
     assert not mon.measure(t2, x, x, th2).valid
+    assert VibrationMonitor(min_revolutions=3.4).measure(t2, x, x, th2).valid
     # a constant signal: zeros, the phase scatter capped at a uniform phase's
     r = mon.measure(t, np.full(N, 4.0), np.zeros(N), th, noise_um=SIGMA)
     assert r.valid and r.x.mean_um == pytest.approx(4.0) and r.x.synchronous_um_pp < 1e-12

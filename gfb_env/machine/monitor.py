@@ -32,8 +32,8 @@ rotor-bearing system, it does not follow the speed ramp.  A 60-tau control step 
 whirl cycles), so the frequency resolution (1 / record length) is 0.15-0.25x: an FFT with a window could
 not separate 0.45x from 0.3x or 0.6x, and its bins would not even sit on the band.  The level is instead
 the data's orthogonal projection onto the band columns made orthogonal to the nuisance columns (K = 4
-pairs 0.083x apart, closer than the resolution): any sinusoid in the band is captured to within a few per
-cent (tested: 0.30-0.55x within 10 % on 4-7 revolutions), a pure 1x, 2x, mean or trend gives exactly 0,
+pairs 0.083x apart, closer than the resolution): any sinusoid in the band is captured to within 10 %
+(0.91-1.00 of its rms, tested on 4.3-6.7 revolutions), a pure 1x, 2x, mean or trend gives exactly 0,
 and being a projection the level never exceeds the signal (the joint fit's band coefficients would:
 they trade off against the 1x and 2x columns on a short record).  The price is the band's skirts: the
 record is too short for a sharp edge, so 0.2x and 0.6x still pass mostly (docs/machine.md has the table).

@@ -9,7 +9,9 @@
 * :class:`~gfb_env.machine.shocks.ShockArrivals`: random base shocks (Poisson arrivals) as
   :class:`~gfb_env.machine.shocks.ShockEvent` records;
 * :class:`~gfb_env.machine.balance.RotorBalance`: the rotor's residual unbalance, an ISO balance grade
-  drawn per episode.
+  drawn per episode;
+* :class:`~gfb_env.machine.monitor.VibrationMonitor`: the shaft-vibration monitor (direct, 1x and 2x
+  vectors, sub-synchronous level) of one control step's probe samples (not yet in any observation).
 
 Each is a small frozen, validated configuration with physical units in its field names; the defaults
 are realistic and justified in ``docs/machine.md``, and each sensor/actuator has an ``ideal()`` that
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 from gfb_env.machine.actuator import DampingActuatorState, FoilDampingActuator
 from gfb_env.machine.balance import RotorBalance
+from gfb_env.machine.monitor import MonitorReading, ProbeVibration, VibrationMonitor
 from gfb_env.machine.motor import Motor
 from gfb_env.machine.pressure_taps import PressureTaps
 from gfb_env.machine.probes import ProbeErrors, ProximityProbes
@@ -29,11 +32,14 @@ from gfb_env.machine.shocks import ShockArrivals, ShockEvent
 __all__ = [
     "DampingActuatorState",
     "FoilDampingActuator",
+    "MonitorReading",
     "Motor",
     "PressureTaps",
     "ProbeErrors",
+    "ProbeVibration",
     "ProximityProbes",
     "RotorBalance",
     "ShockArrivals",
     "ShockEvent",
+    "VibrationMonitor",
 ]

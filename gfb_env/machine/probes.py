@@ -145,6 +145,20 @@ class ProximityProbes:
             b = b + self.bias_spread_um * rng.standard_normal(2)
         return b
 
+    def readings_um(
+        self, rng: np.random.Generator, xi_um: np.ndarray, eta_um: np.ndarray, bias_um: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The measured readings (X, Y) in um of every sample of a journal record ``xi_um``, ``eta_um``
+        (um): the geometry, this episode's ``bias_um`` and, if ``noise_um > 0``, white Gaussian noise
+        drawn from ``rng`` (rows: samples, columns: X, Y, as :meth:`measurement_errors` draws it).  What
+        the vibration monitor (:mod:`gfb_env.machine.monitor`) takes; the v1 observation does not use it."""
+        xi_um, eta_um = np.asarray(xi_um, dtype=float), np.asarray(eta_um, dtype=float)
+        x, y = self.read_um(xi_um, eta_um, bias_um)
+        if self.noise_um == 0.0:
+            return x, y
+        noise = self.noise_um * rng.standard_normal((len(xi_um), 2))
+        return x + noise[:, 0], y + noise[:, 1]
+
     def measurement_errors(
         self,
         rng: np.random.Generator,

@@ -1,0 +1,422 @@
+"""A shaft-vibration monitor: what a machinery-protection rack computes from one control step's probe samples.
+
+Per probe (X, Y) and per control step it reports
+
+* the **direct** (unfiltered) peak-to-peak displacement, um pp: max - min of the step's samples.  Shaft
+  displacement is specified peak-to-peak (``S_pp`` of ISO 7919 / ISO 20816 for shaft vibration), and a
+  machinery-protection system (API 670) monitors the direct radial vibration;
+* the **1x (synchronous) vector**: amplitude in um pp and phase lag in degrees behind the once-per-revolution
+  key (keyphasor), by synchronous demodulation: least squares of the samples on ``cos theta(t)``,
+  ``sin theta(t)`` with ``theta(t)`` the rotation angle the integrator tracks (exact for a speed that ramps
+  over the step, which an FFT of a fixed frequency is not).  The phase convention is the keyphasor
+  practice of API 670 monitors: the lag (0-360 degrees, in the rotation's degrees) from the key mark passing
+  its sensor to the next positive peak of the 1x signal, i.e. ``signal = A cos(theta - phase_lag)``;
+* the **2x** amplitude, um pp (the same demodulation at ``2 theta``; reported because it is free and it
+  must be in the fit anyway, or the orbit's harmonic leaks into the band below);
+* the **sub-synchronous level**, um rms: the rms over the step of the part of the signal in the band
+  ``subsynchronous_band_ratio`` (default 0.30-0.55 of the running speed: the whirls of this bearing run at
+  0.37-0.42x at onset (linear), 0.43-0.46x on the limit cycles of docs/analysis.md and 0.34x on the
+  developed whirl WhirlRecovery-v1 starts from), and the **dominant sub-synchronous ratio** (the frequency /
+  running speed at which a single sinusoid explains the most of it);
+* the mean (the gap, "position") in um, its linear trend in um/s, and the rms of what the fit leaves.
+
+The 1x and 2x vectors, mean and trend come out of one linear least-squares fit per probe with the columns
+
+    1, (t - t_mid), cos theta, sin theta, cos 2 theta, sin 2 theta,     (the "nuisance" columns)
+    cos(r_k Omega t), sin(r_k Omega t)    (k = 1..K, r_k evenly spaced over the band,
+                                           Omega the step's mean speed)
+
+so that a whirl does not leak into the 1x vector (< 1 % of its amplitude, tested).  The band columns are
+at fixed frequencies of the step's *mean* speed, not order-tracked: a whirl is a natural frequency of the
+rotor-bearing system, it does not follow the speed ramp.  A 60-tau control step holds 4-7 revolutions (2-3
+whirl cycles), so the frequency resolution (1 / record length) is 0.15-0.25x: an FFT with a window could
+not separate 0.45x from 0.3x or 0.6x, and its bins would not even sit on the band.  The level is instead
+the data's orthogonal projection onto the band columns made orthogonal to the nuisance columns (K = 4
+pairs 0.083x apart, closer than the resolution): any sinusoid in the band is captured to within 10 %
+(0.91-1.00 of its rms, tested on 4.3-6.7 revolutions), a pure 1x, 2x, mean or trend gives exactly 0,
+and being a projection the level never exceeds the signal (the joint fit's band coefficients would:
+they trade off against the 1x and 2x columns on a short record).  The price is the band's skirts: the
+record is too short for a sharp edge, so 0.2x and 0.6x still pass mostly (docs/machine.md has the table).
+
+Noise (white Gaussian, ``noise_um`` = sigma per sample, as :class:`~gfb_env.machine.probes.ProximityProbes`
+adds it): the coefficients have the covariance ``sigma^2 (A^T A)^-1`` exactly; the reported standard
+deviations are its delta-method propagation (for many revolutions ``sigma_A ~ sigma sqrt(2 / N)``
+zero-to-peak, so ``2 sigma sqrt(2 / N)`` pp, and ``sigma_phase ~ sigma_A / A`` rad, capped at
+``pi / sqrt 3``, the standard deviation of a uniform phase, when the vector is lost in the noise).  The
+band projection has ``r = 2K`` dimensions: pure noise gives the level ``noise_floor = sigma sqrt(r / N)``
+(rms sense), ``E[level^2] = true^2 + floor^2``, and well above the floor the level's standard deviation is
+``sigma / sqrt N`` (a non-central chi).  The direct peak-to-peak has no closed form (an extreme of noisy
+samples): it is biased up by the noise (measured in ``tests/machine/test_monitor.py``).
+
+The monitor is not yet part of any observation (the v1 observation is unchanged); ``docs/machine.md``
+says what the v2 observation will take from it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from gfb_env.forcing import rotation_angle
+from gfb_env.machine._checks import finite, finite_pair, is_number, nonnegative, positive
+
+__all__ = ["VibrationMonitor", "ProbeVibration", "MonitorReading", "keyphasor_angles"]
+
+#: the standard deviation of a phase uniform on a circle: the most a phase estimate can scatter
+_UNIFORM_PHASE_STD_RAD = math.pi / math.sqrt(3.0)
+_N_NUISANCE = 6  # mean, trend, 1x (2), 2x (2)
+
+
+def keyphasor_angles(
+    tau: np.ndarray, tau_start: float, angle_start_rad: float, bearing_number_start: float,
+    tau_end: float, bearing_number_end: float,
+) -> np.ndarray:  # fmt: skip
+    """The rotation angle theta (rad, not reduced) at the sample times ``tau`` of one control step, from
+    the integrator's angle at the step's start (``TrapezoidalIntegrator.rotation_angle``) and the linear
+    Lambda ramp of the step (theta' = Lambda, exactly as the integrator's unbalance forcing uses it)."""
+    span = float(tau_end) - float(tau_start)
+    if not span > 0:
+        raise ValueError(f"tau_end must be after tau_start, got {tau_start!r} and {tau_end!r}")
+    rate = (float(bearing_number_end) - float(bearing_number_start)) / span
+    d = np.asarray(tau, dtype=float) - float(tau_start)
+    return rotation_angle(float(angle_start_rad), float(bearing_number_start), rate, d)
+
+
+@dataclass(frozen=True)
+class ProbeVibration:
+    """One probe's monitor values over one control step (module docstring).  ``*_std``: the standard
+    deviation of the estimate that the probe's white noise alone causes (0 for an exact probe).
+
+    Attributes:
+        direct_um_pp: max - min of the samples, um peak-to-peak.
+        synchronous_um_pp: 1x amplitude, um peak-to-peak (twice the zero-to-peak ``A``).
+        synchronous_phase_lag_deg: 1x phase lag behind the key, degrees in [0, 360).
+        synchronous_um_pp_std, synchronous_phase_lag_deg_std: their noise.
+        second_harmonic_um_pp: 2x amplitude, um peak-to-peak.
+        subsynchronous_um_rms: rms of the band component over the step, um.
+        subsynchronous_um_rms_std: its noise well above the floor, ``noise_um / sqrt N``.
+        subsynchronous_noise_floor_um_rms: the level pure noise gives (rms sense), ``noise_um
+            sqrt(2K / N)``.
+        subsynchronous_ratio: the dominant frequency in the band / the mean running speed.
+        mean_um, trend_um_per_s: the gap (position) at the step's middle and its slope.
+        residual_um_rms: rms of what the fit leaves (noise plus unmodelled content).
+    """
+
+    direct_um_pp: float
+    synchronous_um_pp: float
+    synchronous_phase_lag_deg: float
+    synchronous_um_pp_std: float
+    synchronous_phase_lag_deg_std: float
+    second_harmonic_um_pp: float
+    subsynchronous_um_rms: float
+    subsynchronous_um_rms_std: float
+    subsynchronous_noise_floor_um_rms: float
+    subsynchronous_ratio: float
+    mean_um: float
+    trend_um_per_s: float
+    residual_um_rms: float
+
+    @property
+    def synchronous_phasor_um(self) -> complex:
+        """The 1x vector as the complex zero-to-peak amplitude ``Z`` with ``signal = Re(Z e^{i theta})``
+        (the convention of :mod:`gfb_env.analysis.response`)."""
+        return complex(
+            0.5 * self.synchronous_um_pp * np.exp(-1j * math.radians(self.synchronous_phase_lag_deg))
+        )
+
+
+@dataclass(frozen=True)
+class MonitorReading:
+    """The monitor's output for one control step: both probes, the running speed from the key.
+
+    ``valid`` is False when the rotor turned less than ``min_revolutions`` over the record (too slow for
+    a 1x filter: a real monitor flags its filtered values "not OK" below a minimum speed).  Then every
+    filtered value (1x, 2x, band, their noise) is 0 and ``subsynchronous_ratio`` is the band's middle;
+    the direct peak-to-peak, mean, trend and residual are still computed."""
+
+    x: ProbeVibration
+    y: ProbeVibration
+    running_speed_rpm: float
+    revolutions: float
+    n_samples: int
+    valid: bool
+
+    def as_dict(self) -> dict[str, float]:
+        """Flat ``{probe_field: value}`` (``x_direct_um_pp``, ...) plus the speed and the flag."""
+        out: dict[str, float] = {}
+        for name, p in (("x", self.x), ("y", self.y)):
+            for k, v in vars(p).items():
+                out[f"{name}_{k}"] = v
+        out["running_speed_rpm"] = self.running_speed_rpm
+        out["revolutions"] = self.revolutions
+        out["valid"] = float(self.valid)
+        return out
+
+
+@dataclass(frozen=True)
+class VibrationMonitor:
+    """Configuration of the vibration monitor (module docstring).
+
+    Attributes:
+        subsynchronous_band_ratio: ``(low, high)`` of the sub-synchronous band, in multiples of the
+            running speed (default (0.30, 0.55): around the 0.34-0.46x whirls of this bearing, clear
+            of 1x).
+        subsynchronous_frequencies: K, the sinusoid pairs spanning the band (default 4: 0.083x apart,
+            closer than the 0.15-0.25x resolution of a 4-7 revolution record).
+        ratio_scan_step: grid step of the dominant-ratio search, in multiples of the speed (default
+            0.005, refined by a parabola through the peak).
+        min_revolutions: the fewest revolutions over the record for the filtered values (default 3.5:
+            on shorter records the band columns and the 1x trade off, the 1x noise is 2.7x the
+            ``sigma sqrt(2 / N)`` of a long record at 3.7 revolutions, 5-12x at 3; 60 tau is 3.5
+            revolutions at Lambda 0.37, 22 000 rpm on the nominal bearing).
+        keyphasor_angle_deg: the rotation angle theta (degrees, from the downward vertical toward +xi)
+            at which the key mark passes its sensor: the zero of the phase (default 0).
+    """
+
+    subsynchronous_band_ratio: tuple[float, float] = (0.30, 0.55)
+    subsynchronous_frequencies: int = 4
+    ratio_scan_step: float = 0.005
+    min_revolutions: float = 3.5
+    keyphasor_angle_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        put = object.__setattr__
+        lo, hi = finite_pair(
+            "subsynchronous_band_ratio", self.subsynchronous_band_ratio, positive_values=True
+        )
+        if not (lo < hi < 0.9):
+            raise ValueError(
+                f"subsynchronous_band_ratio must be 0 < low < high < 0.9 (clear of 1x), got "
+                f"{self.subsynchronous_band_ratio!r}"
+            )
+        put(self, "subsynchronous_band_ratio", (lo, hi))
+        k = self.subsynchronous_frequencies
+        if not (is_number(k) and float(k).is_integer() and 1 <= k <= 20):
+            raise ValueError(f"subsynchronous_frequencies must be an integer in [1, 20], got {k!r}")
+        put(self, "subsynchronous_frequencies", int(k))
+        step = positive("ratio_scan_step", self.ratio_scan_step)
+        if step > hi - lo:
+            raise ValueError(f"ratio_scan_step must be at most the band's width {hi - lo:g}, got {step!r}")
+        put(self, "ratio_scan_step", step)
+        put(self, "min_revolutions", positive("min_revolutions", self.min_revolutions))
+        put(self, "keyphasor_angle_deg", finite("keyphasor_angle_deg", self.keyphasor_angle_deg))
+
+    @property
+    def band_ratios(self) -> np.ndarray:
+        """The K ratios of the band's columns (the band's middle if K = 1)."""
+        lo, hi = self.subsynchronous_band_ratio
+        k = self.subsynchronous_frequencies
+        return np.array([0.5 * (lo + hi)]) if k == 1 else np.linspace(lo, hi, k)
+
+    @property
+    def min_samples(self) -> int:
+        """The fewest samples a record may have: twice the fit's columns."""
+        return 2 * (_N_NUISANCE + 2 * self.subsynchronous_frequencies)
+
+    # ------------------------------------------------------------------------------------------
+    def measure(
+        self,
+        time_s: np.ndarray,
+        x_um: np.ndarray,
+        y_um: np.ndarray,
+        rotation_angle_rad: np.ndarray,
+        noise_um: float = 0.0,
+    ) -> MonitorReading:
+        """The monitor's values of one control step (pure: no state, no random numbers).
+
+        Args:
+            time_s: sample times, s, strictly increasing (the probes' record grid).
+            x_um, y_um: the measured probe readings at those times, um (bias and noise included, as
+                :meth:`ProximityProbes.readings_um` gives them).
+            rotation_angle_rad: the rotation angle theta at those times, rad (reduced or not; at most
+                a quarter revolution between samples, so that 2x is below the Nyquist frequency):
+                :func:`keyphasor_angles`.
+            noise_um: the standard deviation of the probes' white noise per sample (``ProximityProbes
+                .noise_um``), for the ``*_std`` entries.
+
+        Raises ``ValueError`` (naming the argument) for mismatched lengths, non-finite values, fewer than
+        :attr:`min_samples` samples, times not increasing or a rotation too fast for the sampling."""
+        t = _series("time_s", time_s)
+        n = len(t)
+        if n < self.min_samples:
+            raise ValueError(f"time_s must have at least {self.min_samples} samples, got {n}")
+        x, y = _series("x_um", x_um, n), _series("y_um", y_um, n)
+        theta = np.unwrap(_series("rotation_angle_rad", rotation_angle_rad, n))
+        sigma = nonnegative("noise_um", noise_um)
+        dt = np.diff(t)
+        if not np.all(dt > 0):
+            raise ValueError("time_s must be strictly increasing")
+        dth = np.diff(theta)
+        if np.any(dth < 0):
+            raise ValueError("rotation_angle_rad must not decrease (the rotor turns one way)")
+        if np.max(dth) > 0.5 * math.pi:
+            raise ValueError(
+                "rotation_angle_rad moves more than a quarter revolution between samples (2x above Nyquist)"
+            )
+        duration = float(t[-1] - t[0])
+        sweep = float(theta[-1] - theta[0])
+        revolutions = sweep / (2.0 * math.pi)
+        omega = sweep / duration  # mean running speed, rad/s
+        speed_rpm = omega * 60.0 / (2.0 * math.pi)
+        data = np.column_stack([x, y])
+        if revolutions < self.min_revolutions:
+            return self._too_slow(t, data, speed_rpm, revolutions, n)
+
+        # --- the joint least-squares fit (columns scaled to O(1) for the conditioning) ----------
+        tm = 0.5 * (t[0] + t[-1])
+        s = (t - tm) / duration  # in [-1/2, 1/2]
+        ph = theta - math.radians(self.keyphasor_angle_deg)
+        ratios = self.band_ratios
+        band_phase = np.outer(omega * (t - t[0]), ratios)  # (n, K)
+        band = np.empty((n, 2 * len(ratios)))
+        band[:, 0::2], band[:, 1::2] = np.cos(band_phase), np.sin(band_phase)
+        A = np.column_stack([np.ones(n), s, np.cos(ph), np.sin(ph), np.cos(2 * ph), np.sin(2 * ph), band])
+        q, r = np.linalg.qr(A)
+        coef = np.linalg.solve(r, q.T @ data)  # (p, 2)
+        r_inv = np.linalg.solve(r, np.eye(r.shape[0]))
+        cov = r_inv @ r_inv.T  # (A^T A)^-1: multiply by sigma^2
+        fitted = A @ coef
+        residual_rms = np.sqrt(np.mean((data - fitted) ** 2, axis=0))
+
+        # --- the dominant sub-synchronous ratio: one sinusoid scanned over the band ------------
+        nuisance_q = q[:, :_N_NUISANCE]  # an orthonormal basis of the first 6 columns (QR is nested)
+        ratios_scan = _scan_grid(self.subsynchronous_band_ratio, self.ratio_scan_step)
+        power = _single_frequency_power(omega * (t - t[0]), ratios_scan, nuisance_q, data)  # (R, 2)
+
+        probes = []
+        # the band: the data's orthogonal projection onto the band columns made orthogonal to the
+        # nuisance columns (mean, trend, 1x, 2x), so that the level never exceeds the signal
+        band_q = _band_basis(band, nuisance_q)
+        rank = band_q.shape[1]
+        w = band_q.T @ data  # (rank, 2)
+        floor = sigma * math.sqrt(rank / n)
+        for j in range(2):
+            c = coef[:, j]
+            amp, lag, amp_std, lag_std = _vector(c[2], c[3], cov[2:4, 2:4], sigma)
+            amp2 = math.hypot(c[4], c[5])
+            level = math.sqrt(float(w[:, j] @ w[:, j]) / n)
+            # sqrt(n) level = |w| is a non-central chi (rank degrees of freedom, scale sigma): its std
+            # tends to sigma well above the floor (below sigma / sqrt 2 at it)
+            level_std = sigma / math.sqrt(n)
+            probes.append(
+                ProbeVibration(
+                    direct_um_pp=float(data[:, j].max() - data[:, j].min()),
+                    synchronous_um_pp=2.0 * amp,
+                    synchronous_phase_lag_deg=lag,
+                    synchronous_um_pp_std=2.0 * amp_std,
+                    synchronous_phase_lag_deg_std=lag_std,
+                    second_harmonic_um_pp=2.0 * amp2,
+                    subsynchronous_um_rms=level,
+                    subsynchronous_um_rms_std=level_std,
+                    subsynchronous_noise_floor_um_rms=floor,
+                    subsynchronous_ratio=_peak(ratios_scan, power[:, j]),
+                    mean_um=float(c[0]),
+                    trend_um_per_s=float(c[1] / duration),
+                    residual_um_rms=float(residual_rms[j]),
+                )
+            )
+        return MonitorReading(probes[0], probes[1], speed_rpm, revolutions, n, True)
+
+    def _too_slow(
+        self, t: np.ndarray, data: np.ndarray, speed_rpm: float, revolutions: float, n: int
+    ) -> MonitorReading:
+        """The documented fallback below ``min_revolutions``: direct values only (mean + trend fit)."""
+        duration = float(t[-1] - t[0])
+        s = (t - 0.5 * (t[0] + t[-1])) / duration
+        A = np.column_stack([np.ones(n), s])
+        coef, *_ = np.linalg.lstsq(A, data, rcond=None)
+        res = np.sqrt(np.mean((data - A @ coef) ** 2, axis=0))
+        mid = 0.5 * sum(self.subsynchronous_band_ratio)
+        probes = [
+            ProbeVibration(
+                float(data[:, j].max() - data[:, j].min()),
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                mid,
+                float(coef[0, j]),
+                float(coef[1, j] / duration),
+                float(res[j]),
+            )  # fmt: skip
+            for j in range(2)
+        ]
+        return MonitorReading(probes[0], probes[1], speed_rpm, revolutions, n, False)
+
+
+# ------------------------------------------------------------------------------------------------
+def _series(name: str, v: np.ndarray, n: int | None = None) -> np.ndarray:
+    a = np.asarray(v, dtype=float)
+    if a.ndim != 1:
+        raise ValueError(f"{name} must be one-dimensional, got shape {a.shape}")
+    if n is not None and len(a) != n:
+        raise ValueError(f"{name} must have as many samples as time_s ({n}), got {len(a)}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be finite")
+    return a
+
+
+def _vector(a: float, b: float, cov2: np.ndarray, sigma: float) -> tuple[float, float, float, float]:
+    """Zero-to-peak amplitude, phase lag (deg, [0, 360)) of ``a cos + b sin = A cos(theta - lag)`` and
+    their delta-method standard deviations (the phase's capped at that of a uniform phase)."""
+    amp = math.hypot(a, b)
+    lag = math.degrees(math.atan2(b, a)) % 360.0
+    if sigma == 0.0:
+        return amp, lag, 0.0, 0.0
+    if amp > 0:
+        g = np.array([a, b]) / amp
+        h = np.array([-b, a]) / (amp * amp)
+        amp_std = sigma * math.sqrt(max(float(g @ cov2 @ g), 0.0))
+        lag_std = min(sigma * math.sqrt(max(float(h @ cov2 @ h), 0.0)), _UNIFORM_PHASE_STD_RAD)
+    else:
+        amp_std = sigma * math.sqrt(max(0.5 * float(np.trace(cov2)), 0.0))
+        lag_std = _UNIFORM_PHASE_STD_RAD
+    return amp, lag, amp_std, math.degrees(lag_std)
+
+
+def _band_basis(band: np.ndarray, nuisance_q: np.ndarray) -> np.ndarray:
+    """An orthonormal basis (n, r) of the band columns' part orthogonal to the nuisance columns
+    (orthonormal ``nuisance_q``); directions of the band (almost) inside the nuisance span are dropped."""
+    perp = band - nuisance_q @ (nuisance_q.T @ band)
+    u, sv, _ = np.linalg.svd(perp, full_matrices=False)
+    scale = np.linalg.norm(band, axis=0).max()
+    return u[:, sv > 1e-8 * scale]
+
+
+def _scan_grid(band: tuple[float, float], step: float) -> np.ndarray:
+    lo, hi = band
+    m = int(math.floor((hi - lo) / step + 1e-9)) + 1
+    return lo + step * np.arange(m)
+
+
+def _single_frequency_power(
+    phase_per_ratio: np.ndarray, ratios: np.ndarray, nuisance_q: np.ndarray, data: np.ndarray
+) -> np.ndarray:
+    """For each ratio r: the squared norm of the data's projection onto (cos, sin)(r Omega t) after the
+    nuisance columns (orthonormal ``nuisance_q``) are removed from both.  Shape (R, 2)."""
+    ang = np.outer(ratios, phase_per_ratio)  # (R, n)
+    pair = np.stack([np.cos(ang), np.sin(ang)], axis=2)  # (R, n, 2)
+    pair = pair - np.einsum("nk,rkj->rnj", nuisance_q, np.einsum("mk,rmj->rkj", nuisance_q, pair))
+    resid = data - nuisance_q @ (nuisance_q.T @ data)  # (n, 2)
+    g = np.einsum("rni,rnj->rij", pair, pair)  # (R, 2, 2)
+    v = np.einsum("rni,nc->ric", pair, resid)  # (R, 2, 2): pair column i, probe c
+    sol = np.linalg.solve(g, v)
+    return np.einsum("ric,ric->rc", v, sol)
+
+
+def _peak(ratios: np.ndarray, power: np.ndarray) -> float:
+    """The grid maximum refined by a parabola through it and its neighbours (the grid point at an edge)."""
+    k = int(np.argmax(power))
+    if 0 < k < len(ratios) - 1:
+        p0, p1, p2 = power[k - 1], power[k], power[k + 1]
+        den = p0 - 2.0 * p1 + p2
+        if den < 0:
+            off = 0.5 * (p0 - p2) / den
+            return float(ratios[k] + max(-0.5, min(0.5, off)) * (ratios[1] - ratios[0]))
+    return float(ratios[k])

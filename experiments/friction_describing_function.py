@@ -16,6 +16,7 @@ describing function ``D_J = D_15 (1 - F_c / (K_T q_hat))`` (zero while ``q_hat <
 Writes ``results/friction_describing_function/summary.json`` and ``columns.png``.
 
     python -m gfb_experiments.friction_describing_function [--grid 21x5] [--mu 0.1] [--duration 400]
+        [--slip-viscosity ETA]
 """
 
 from __future__ import annotations
@@ -106,6 +107,7 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--mu", type=float, default=0.1)
     p.add_argument("--bearing-number", type=float, default=0.6)
     p.add_argument("--duration", type=float, default=400.0)
+    p.add_argument("--slip-viscosity", type=float, default=None)
     p.add_argument("--out", default="results/friction_describing_function")
     a = p.parse_args(argv)
     try:
@@ -116,6 +118,7 @@ def main(argv: list[str] | None = None) -> dict:
             foil_stiffness=a.foil_stiffness,
             stick_stiffness=a.stick_stiffness,
             friction_coefficient=a.mu,
+            slip_viscosity=a.slip_viscosity,
         )
     except ValueError as exc:
         p.error(str(exc))

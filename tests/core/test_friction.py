@@ -378,6 +378,12 @@ def test_cli_takes_the_bearing_files_friction_and_refuses_a_bad_one(tmp_path, ca
     # another structure ignores the table (the file describes the hardware)
     assert main(["equilibrium", "--grid", "13x5", "--bearing-number", "0.6", "--bearing", str(p)]) == 0
     capsys.readouterr()
+    # gfb bearing reports the table (and nothing new for a file without one)
+    assert main(["bearing", "--bearing", str(p), "--json"]) == 0
+    fr = json.loads(capsys.readouterr().out)["friction"]
+    assert fr["friction_coefficient"] == 0.25 and fr["stick_stiffness"] == pytest.approx(2 * m.foil_stiffness)
+    assert main(["bearing", "--bearing", "table1", "--json"]) == 0
+    assert "friction" not in json.loads(capsys.readouterr().out)
     p.write_text("[friction]\nstick_stiffness_ratio = 0\n")
     out = tmp_path / "out"
     assert_refused_at_once(

@@ -40,6 +40,7 @@ format: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m gfb_experiments.bench_integrator
+	$(BIN)/python -m gfb_experiments.bench_friction
 
 bench-env: $(STAMP)
 	$(BIN)/python -m gfb_experiments.bench_env

@@ -41,7 +41,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from gfb_env import _kernels as K
-from gfb_env.params import BearingParameters, NondimensionalParameters, check_positive
+from gfb_env.params import BearingParameters, FrictionParameters, NondimensionalParameters, check_positive
 
 __all__ = [
     "Structure",
@@ -326,8 +326,12 @@ class GFBModel:
         friction_coefficient: Coulomb coefficient ``mu_C`` of the frictional foil (default 0.1, >= 0).
         slip_viscosity: regularisation ``eta`` of the frictional foil's slider law (default 1e-3,
             :data:`DEFAULT_SLIP_VISCOSITY`).
+        friction: the frictional foil's physical inputs (a bearing file's ``[friction]`` table,
+            :class:`~gfb_env.params.FrictionParameters`): its ``mu_C`` and its ``K_T`` (per unit area,
+            ``K_T = k_T C / p0``, or as a ratio to K_W) where ``stick_stiffness`` and
+            ``friction_coefficient`` are not given (those override it).
 
-    The three frictional parameters are refused (``ValueError``) for the other structures.
+    The frictional parameters are refused (``ValueError``) for the other structures.
     """
 
     def __init__(
@@ -339,6 +343,7 @@ class GFBModel:
         stick_stiffness: float | None = None,
         friction_coefficient: float | None = None,
         slip_viscosity: float | None = None,
+        friction: FrictionParameters | None = None,
     ):
         self.structure = Structure.parse(structure)
         frictional = self.structure is Structure.FRICTIONAL
@@ -346,11 +351,14 @@ class GFBModel:
             ("stick_stiffness", stick_stiffness),
             ("friction_coefficient", friction_coefficient),
             ("slip_viscosity", slip_viscosity),
+            ("friction", friction),
         ):
             if value is not None and not frictional:
                 raise ValueError(
                     f"{name} is a parameter of the frictional foil, not of {self.structure.value}"
                 )
+        if friction is not None and not isinstance(friction, FrictionParameters):
+            raise ValueError(f"friction must be a FrictionParameters, got {type(friction).__name__}")
         if stick_stiffness is not None:
             check_positive("stick_stiffness", stick_stiffness)
         if slip_viscosity is not None:
@@ -372,6 +380,11 @@ class GFBModel:
         self.params: NondimensionalParameters = self.bearing.nondimensional(foil_stiffness)
         self.layout = StateLayout(grid, self.structure)
         kw = self.params.foil_stiffness
+        if friction is not None:
+            if stick_stiffness is None:
+                stick_stiffness = friction.stick_stiffness(self.bearing, kw)
+            if friction_coefficient is None:
+                friction_coefficient = friction.friction_coefficient
         self.stick_stiffness = (
             float(stick_stiffness if stick_stiffness is not None else kw) if frictional else 0.0
         )

@@ -32,9 +32,11 @@ from typing import Any
 
 __all__ = [
     "BearingParameters",
+    "FrictionParameters",
     "MAX_BEARING_FILE_BYTES",
     "NondimensionalParameters",
     "check_positive",
+    "read_bearing_file",
     "shipped_bearing_names",
     "shipped_bearing_path",
 ]
@@ -347,47 +349,12 @@ class BearingParameters:
         ``gfb_env/data/bearings/``, see :func:`shipped_bearing_path`).
 
         Keys are the field names of this class (SI units as in their names); missing keys take
-        Table 1.  Raises ``ValueError`` (one line naming the file and the key) for a missing or
+        Table 1.  An optional ``[friction]`` table (the frictional foil's inputs, see
+        :class:`FrictionParameters` and :func:`read_bearing_file`) is validated and not part of the
+        bearing.  Raises ``ValueError`` (one line naming the file and the key) for a missing or
         unreadable file, a device, pipe or socket, a file over :data:`MAX_BEARING_FILE_BYTES`, a TOML
         syntax error (nesting too deep included), an unknown key or a bad value."""
-        p = Path(path).expanduser()
-        try:
-            # O_NONBLOCK: opening a named pipe must not wait for a writer; fstat then refuses it
-            fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-        except FileNotFoundError:
-            raise ValueError(f"{path}: no such file") from None
-        except IsADirectoryError:
-            raise ValueError(f"{path}: is a folder, not a bearing file") from None
-        except OSError as exc:
-            raise ValueError(f"{path}: cannot read ({exc.strerror})") from None
-        st = os.fstat(fd)
-        if stat.S_ISDIR(st.st_mode):
-            os.close(fd)
-            raise ValueError(f"{path}: is a folder, not a bearing file")
-        with os.fdopen(fd, "rb") as fh:
-            if not stat.S_ISREG(st.st_mode):
-                raise ValueError(f"{path}: not a regular file (a device, pipe or socket), not a bearing file")
-            if st.st_size > MAX_BEARING_FILE_BYTES:
-                raise ValueError(
-                    f"{path}: {st.st_size} bytes, a bearing file has at most {MAX_BEARING_FILE_BYTES} bytes"
-                )
-            try:
-                raw = fh.read(MAX_BEARING_FILE_BYTES + 1)  # +1: a file that grew since fstat
-            except OSError as exc:
-                raise ValueError(f"{path}: cannot read ({exc.strerror})") from None
-        if len(raw) > MAX_BEARING_FILE_BYTES:
-            raise ValueError(f"{path}: a bearing file has at most {MAX_BEARING_FILE_BYTES} bytes")
-        try:
-            text = raw.decode("utf-8")
-        except UnicodeDecodeError:
-            raise ValueError(f"{path}: not a UTF-8 text (TOML) file") from None
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{path}: TOML syntax error: {str(exc).splitlines()[0]}") from None
-        except RecursionError:  # tomllib recurses once per nesting level of an array or table
-            raise ValueError(f"{path}: TOML syntax error: arrays or tables nested too deeply") from None
-        return cls.from_mapping(data, source=str(path))
+        return read_bearing_file(path)[0]
 
     def replace(self, **changes: float) -> BearingParameters:
         """A copy with some fields changed (validated again)."""
@@ -396,3 +363,138 @@ class BearingParameters:
     def as_dict(self) -> dict[str, float]:
         """All dimensional fields as a plain dict."""
         return asdict(self)
+
+
+def _read_toml(path: str | Path) -> dict[str, Any]:
+    """The parsed TOML of a bearing file (size and type checked before reading; see
+    :meth:`BearingParameters.from_toml` for what is refused)."""
+    p = Path(path).expanduser()
+    try:
+        # O_NONBLOCK: opening a named pipe must not wait for a writer; fstat then refuses it
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except FileNotFoundError:
+        raise ValueError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise ValueError(f"{path}: is a folder, not a bearing file") from None
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read ({exc.strerror})") from None
+    st = os.fstat(fd)
+    if stat.S_ISDIR(st.st_mode):
+        os.close(fd)
+        raise ValueError(f"{path}: is a folder, not a bearing file")
+    with os.fdopen(fd, "rb") as fh:
+        if not stat.S_ISREG(st.st_mode):
+            raise ValueError(f"{path}: not a regular file (a device, pipe or socket), not a bearing file")
+        if st.st_size > MAX_BEARING_FILE_BYTES:
+            raise ValueError(
+                f"{path}: {st.st_size} bytes, a bearing file has at most {MAX_BEARING_FILE_BYTES} bytes"
+            )
+        try:
+            raw = fh.read(MAX_BEARING_FILE_BYTES + 1)  # +1: a file that grew since fstat
+        except OSError as exc:
+            raise ValueError(f"{path}: cannot read ({exc.strerror})") from None
+    if len(raw) > MAX_BEARING_FILE_BYTES:
+        raise ValueError(f"{path}: a bearing file has at most {MAX_BEARING_FILE_BYTES} bytes")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a UTF-8 text (TOML) file") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: TOML syntax error: {str(exc).splitlines()[0]}") from None
+    except RecursionError:  # tomllib recurses once per nesting level of an array or table
+        raise ValueError(f"{path}: TOML syntax error: arrays or tables nested too deeply") from None
+    return data
+
+
+# ------------------------------------------------------------------------------------------------
+# the frictional foil's physical inputs (issue 22)
+@dataclass(frozen=True)
+class FrictionParameters:
+    """Physical inputs of the frictional foil (``--structure frictional``), the ``[friction]`` table of
+    a bearing file.  Kept apart from :class:`BearingParameters` so that a bearing file without them
+    has the same :meth:`BearingParameters.as_dict` (the key of the envs' task constants) as before.
+
+    Attributes:
+        friction_coefficient: Coulomb coefficient ``mu_C`` of the bump-foil contacts (dimensionless,
+            finite, >= 0; identified bump-foil values are about 0.05-0.2).
+        stick_stiffness_n_m3: stick stiffness ``k_T`` of the Jenkins element per unit foil area (N/m per
+            m^2, as the foundation stiffness ``k_W`` behind K_W); nondimensional ``K_T = k_T C / p0``,
+            the scaling of ``K_W = k_W C / p0`` (pressures by p0, deflections by C).
+        stick_stiffness_ratio: ``K_T / K_W`` instead (dimensionless, > 0), relative to the model's K_W
+            (the Walowit-Anno value or ``--foil-stiffness``).
+
+    At most one of the two stiffness inputs; with neither, the model's default (K_T = K_W).
+    """
+
+    friction_coefficient: float = 0.1
+    stick_stiffness_n_m3: float | None = None
+    stick_stiffness_ratio: float | None = None
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if value is None and f.name != "friction_coefficient":
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"friction.{f.name} must be a number, got {value!r}")
+            if not math.isfinite(value):
+                raise ValueError(f"friction.{f.name} must be finite, got {value!r}")
+            if f.name == "friction_coefficient" and value < 0:
+                raise ValueError(f"friction.{f.name} must be >= 0, got {value!r}")
+            if f.name != "friction_coefficient" and value <= 0:
+                raise ValueError(f"friction.{f.name} must be positive, got {value!r}")
+            object.__setattr__(self, f.name, float(value))
+        if self.stick_stiffness_n_m3 is not None and self.stick_stiffness_ratio is not None:
+            raise ValueError(
+                "friction.stick_stiffness_n_m3 and friction.stick_stiffness_ratio: give at most one of them"
+            )
+
+    def stick_stiffness(self, bearing: BearingParameters, foil_stiffness: float) -> float | None:
+        """Nondimensional ``K_T`` for ``bearing`` and the model's ``K_W`` (None: not given)."""
+        if self.stick_stiffness_n_m3 is not None:
+            return self.stick_stiffness_n_m3 * bearing.clearance_m / bearing.ambient_pressure_pa
+        if self.stick_stiffness_ratio is not None:
+            return self.stick_stiffness_ratio * foil_stiffness
+        return None
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any], source: str = "bearing") -> FrictionParameters:
+        """From the ``[friction]`` table's mapping; missing keys take the defaults.
+
+        Raises:
+            ValueError: one line naming ``source`` and ``friction.KEY``: an unknown key (with the
+                nearest name) or a bad value."""
+        if not isinstance(data, Mapping):
+            raise ValueError(f"{source}: friction must be a table of key = number, got {type(data).__name__}")
+        names = [f.name for f in fields(cls)]
+        for key, value in data.items():
+            if key not in names:
+                import difflib
+
+                near = difflib.get_close_matches(str(key), names, n=1)
+                hint = f" (did you mean {near[0]!r}?)" if near else f" (known keys: {', '.join(names)})"
+                raise ValueError(f"{source}: unknown key friction.{key}{hint}")
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"{source}: friction.{key} must be a number, got {value!r}")
+        try:
+            return cls(**{k: float(v) for k, v in data.items()})
+        except OverflowError:
+            raise ValueError(f"{source}: a friction value is too large") from None
+        except ValueError as exc:
+            raise ValueError(f"{source}: {exc}") from None
+
+
+def read_bearing_file(path: str | Path) -> tuple[BearingParameters, FrictionParameters | None]:
+    """The bearing of a TOML bearing file and its optional ``[friction]`` table (None without one).
+
+    Raises ``ValueError`` (one line naming the file and the key) as :meth:`BearingParameters.from_toml`,
+    and for a bad ``[friction]`` key or value (:meth:`FrictionParameters.from_mapping`)."""
+    data = _read_toml(path)
+    friction_table = data.pop("friction", None)
+    bearing = BearingParameters.from_mapping(data, source=str(path))
+    friction = (
+        None if friction_table is None else FrictionParameters.from_mapping(friction_table, source=str(path))
+    )
+    return bearing, friction

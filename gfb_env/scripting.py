@@ -32,7 +32,13 @@ import numpy as np
 
 from gfb_env import jsonio
 from gfb_env.model import GFBModel, Grid, Structure
-from gfb_env.params import BearingParameters, shipped_bearing_names, shipped_bearing_path
+from gfb_env.params import (
+    BearingParameters,
+    FrictionParameters,
+    read_bearing_file,
+    shipped_bearing_names,
+    shipped_bearing_path,
+)
 
 __all__ = [
     "MAX_DURATION",
@@ -59,6 +65,7 @@ __all__ = [
     "int_range",
     "non_negative",
     "load_bearing",
+    "load_bearing_file",
     "model_from_args",
     "OneLineParser",
     "optional_output_dir",
@@ -180,11 +187,10 @@ def float_list(text: str, name: str, *, positive: bool = True, max_items: int | 
     return vals
 
 
-def load_bearing(text: str | os.PathLike) -> BearingParameters:
+def load_bearing_file(text: str | os.PathLike) -> tuple[BearingParameters, FrictionParameters | None]:
     """The bearing of a TOML file path, or of the NAME of a bearing shipped with the package
-    (:func:`gfb_env.params.shipped_bearing_names`: ``table1``, ``small_turbocompressor``) when no file
-    of that name exists.  Read by :meth:`BearingParameters.from_toml` (size and type checked before
-    reading).
+    (:func:`gfb_env.params.shipped_bearing_names`) when no file of that name exists, and the file's
+    optional ``[friction]`` table (:func:`gfb_env.params.read_bearing_file`; None without one).
 
     Raises:
         ValueError: one line naming the file (or the unknown name and the shipped ones).
@@ -194,33 +200,59 @@ def load_bearing(text: str | os.PathLike) -> BearingParameters:
     if not os.path.lexists(path) and os.sep not in text and "/" not in text:
         stem = text[: -len(".toml")] if text.endswith(".toml") else text
         if stem in shipped_bearing_names():
-            return BearingParameters.from_toml(shipped_bearing_path(stem))
+            return read_bearing_file(shipped_bearing_path(stem))
         raise ValueError(
             f"{text}: no such file, nor the name of a shipped bearing ({', '.join(shipped_bearing_names())})"
         )
-    return BearingParameters.from_toml(path)
+    return read_bearing_file(path)
 
 
-def bearing_file(text: str) -> BearingParameters:
-    """argparse type of ``--bearing``: :func:`load_bearing` (a file or a shipped name, read and
+def load_bearing(text: str | os.PathLike) -> BearingParameters:
+    """The bearing of :func:`load_bearing_file` (a TOML file path or the name of a shipped bearing:
+    ``table1``, ``small_turbocompressor``, ...), read by :meth:`BearingParameters.from_toml`'s reader
+    (size and type checked before reading).
+
+    Raises:
+        ValueError: one line naming the file (or the unknown name and the shipped ones).
+    """
+    return load_bearing_file(text)[0]
+
+
+def bearing_file(text: str) -> tuple[BearingParameters, FrictionParameters | None]:
+    """argparse type of ``--bearing``: :func:`load_bearing_file` (a file or a shipped name, read and
     validated while the arguments are parsed, so a bad file is one line and exit 2 before any work)."""
     try:
-        return load_bearing(text)
+        return load_bearing_file(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+class _BearingAction(argparse.Action):
+    """Stores ``--bearing``'s bearing as ``args.bearing`` and its ``[friction]`` table (or None) as
+    ``args.bearing_friction``, read by :func:`model_from_args` for ``--structure frictional``."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        bearing, friction = values
+        setattr(namespace, self.dest, bearing)
+        namespace.bearing_friction = friction
+
+
 def add_bearing_option(p: argparse.ArgumentParser) -> None:
-    """``--bearing FILE|NAME``: the dimensional bearing (default: the paper's Table 1)."""
+    """``--bearing FILE|NAME``: the dimensional bearing (default: the paper's Table 1), and its
+    optional ``[friction]`` table (``args.bearing_friction``)."""
     p.add_argument(
         "--bearing",
         type=bearing_file,
+        action=_BearingAction,
         default=BearingParameters(),
         metavar="FILE|NAME",
         help="bearing file (TOML, top-level keys = BearingParameters field names in SI units, missing "
-        "keys take Table 1) or the name of a bearing shipped with the package: "
-        f"{', '.join(shipped_bearing_names())} (gfb_env/data/bearings/). Default: the paper's Table 1",
+        "keys take Table 1; an optional [friction] table: friction_coefficient, stick_stiffness_n_m3 or "
+        "stick_stiffness_ratio, for --structure frictional) or the name of a bearing shipped with the "
+        f"package: {', '.join(shipped_bearing_names())} (gfb_env/data/bearings/). Default: the paper's "
+        "Table 1",
     )
+    p.set_defaults(bearing_friction=None)
 
 
 def check_output_dir(text: str, option: str = "--out", files: Iterable[str] = ()) -> Path:
@@ -380,7 +412,9 @@ FRICTION_OPTIONS = {
 
 def model_from_args(args: argparse.Namespace) -> GFBModel:
     """The model of :func:`add_model_options`; the frictional options are refused (``ValueError`` naming
-    the option) with any other ``--structure``."""
+    the option) with any other ``--structure``.  ``--structure frictional`` takes the bearing file's
+    ``[friction]`` table (``--stick-stiffness`` and ``--friction-coefficient`` override it); the other
+    structures ignore that table (it describes the hardware, the structure is the model's choice)."""
     friction = {name: getattr(args, name, None) for name in FRICTION_OPTIONS.values()}
     if args.structure != Structure.FRICTIONAL:
         for option, name in FRICTION_OPTIONS.items():
@@ -389,6 +423,8 @@ def model_from_args(args: argparse.Namespace) -> GFBModel:
                     f"{option} is an option of --structure frictional only, not {args.structure}"
                 )
         friction = {}
+    elif getattr(args, "bearing_friction", None) is not None:
+        friction["friction"] = args.bearing_friction
     return GFBModel(
         args.structure,
         grid=args.grid,

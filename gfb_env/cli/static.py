@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
 from gfb_env import jsonio
 from gfb_env.equilibrium import equilibrium_summary, find_equilibrium
@@ -47,10 +48,17 @@ def cmd_bearing(args: argparse.Namespace) -> int:
 
     out = bearing_report(args.bearing, args.speed_rpm)
     out["parameters"] = args.bearing.as_dict()
+    fr = args.bearing_friction
+    if fr is not None:  # the file's [friction] table (only then: the plain bearing's output is unchanged)
+        kw = args.bearing.foil_stiffness
+        kt = fr.stick_stiffness(args.bearing, kw)
+        out["friction"] = {**dataclasses.asdict(fr), "stick_stiffness": kw if kt is None else kt}
     if args.json:
         print(jsonio.dumps(out))
     else:
-        print_table({k: v for k, v in out.items() if k not in ("warnings", "parameters")})
+        print_table({k: v for k, v in out.items() if k not in ("warnings", "parameters", "friction")})
+        for k, v in out.get("friction", {}).items():
+            print(f"friction.{k}: {v}")
         for w in out["warnings"]:
             print(f"warning: {w}")
         if not out["warnings"]:
@@ -110,7 +118,8 @@ def register(subparsers) -> None:
             "mass_parameter, gravity_parameter, load, foil_stiffness, kappa, static_load_n,\n"
             "specific_load_kpa, static_load_ratio, dellacorte_capacity_n, dellacorte_load_ratio,\n"
             "clearance_ratio, surface_speed_m_s, bump_pitch_m, warnings (list), parameters (the file's\n"
-            "fields with Table-1 defaults filled in)."
+            "fields with Table-1 defaults filled in); friction (only for a file with a [friction] table:\n"
+            "its keys and the nondimensional stick_stiffness K_T at the file's K_W)."
         ),
     )
     add_bearing_option(p)

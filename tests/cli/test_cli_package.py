@@ -85,7 +85,7 @@ def test_python_dash_m_is_the_gfb_command():
 
 # ------------------------------------------------------------------- defect 1: shipped bearings
 def test_shipped_bearing_by_name(capsys):
-    assert set(shipped_bearing_names()) == {"table1", "small_turbocompressor"}
+    assert set(shipped_bearing_names()) == {"table1", "table1_frictional", "small_turbocompressor"}
     code, out, _ = run(capsys, "bearing", "--bearing", "small_turbocompressor", "--json")
     path = REPO / "gfb_env" / "data" / "bearings" / "small_turbocompressor.toml"
     assert code == 0 and json.loads(out)["parameters"] == BearingParameters.from_toml(path).as_dict()
@@ -98,7 +98,8 @@ def test_shipped_bearing_by_name(capsys):
     )
     assert code == 0 and json.loads(out3)["parameters"] == json.loads(out)["parameters"]
     line = one_line_exit_2(capsys, "bearing", "--bearing", "no_such_bearing")
-    assert "no such file, nor the name of a shipped bearing (small_turbocompressor, table1)" in line
+    shipped = "small_turbocompressor, table1, table1_frictional"
+    assert f"no such file, nor the name of a shipped bearing ({shipped})" in line
 
 
 def test_help_names_the_shipped_bearings(capsys):

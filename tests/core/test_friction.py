@@ -294,3 +294,98 @@ def test_finite_friction_critical_bearing_number_converges_in_eta_and_transients
         x = it.advance(600.0, record_interval=1.0).trajectory.xi - L.rotor(s)[0]
         ratio = np.abs(x[-100:]).max() / np.abs(x[50:150]).max()
         assert (ratio > 2.0) if grows else (ratio < 0.9), ratio
+
+
+# ------------------------------------------------------------------------- bearing-file inputs
+def test_bearing_file_friction_table_is_nondimensionalised_and_leaves_the_bearing_alone(tmp_path):
+    from gfb_env.params import BearingParameters, FrictionParameters, read_bearing_file, shipped_bearing_path
+
+    b0 = BearingParameters()
+    # the shipped frictional Table 1: the same bearing (as_dict, the envs' task-constants key, unchanged)
+    b, fr = read_bearing_file(shipped_bearing_path("table1_frictional"))
+    assert (
+        b == b0
+        and b.as_dict() == b0.as_dict()
+        and BearingParameters.from_toml(shipped_bearing_path("table1_frictional")) == b0
+    )
+    assert fr == FrictionParameters(friction_coefficient=0.1, stick_stiffness_n_m3=4.735e9)
+    assert read_bearing_file(shipped_bearing_path("table1"))[1] is None
+    # K_T = k_T C / p0, the scaling of K_W = k_W C / p0
+    m = GFBModel("frictional", grid="13x5", bearing=b, friction=fr)
+    k_w_area = b.foil_stiffness * b.ambient_pressure_pa / b.clearance_m
+    assert m.stick_stiffness == pytest.approx(4.735e9 * b.clearance_m / b.ambient_pressure_pa, rel=1e-15)
+    assert m.stick_stiffness == pytest.approx(m.foil_stiffness * 4.735e9 / k_w_area, rel=1e-12)
+    assert m.friction_coefficient == 0.1
+    # a ratio is relative to the model's K_W (here an override); explicit arguments override the file
+    p = tmp_path / "b.toml"
+    p.write_text("clearance_m = 40e-6\n[friction]\nfriction_coefficient = 0.2\nstick_stiffness_ratio = 0.5\n")
+    b2, fr2 = read_bearing_file(p)
+    assert b2 == b0.replace(clearance_m=40e-6)
+    m2 = GFBModel("frictional", grid="13x5", bearing=b2, foil_stiffness=3.0, friction=fr2)
+    assert m2.stick_stiffness == 1.5 and m2.friction_coefficient == 0.2
+    m3 = GFBModel(
+        "frictional", grid="13x5", bearing=b2, friction=fr2, stick_stiffness=0.7, friction_coefficient=0.0
+    )
+    assert m3.stick_stiffness == 0.7 and m3.friction_coefficient == 0.0
+    # neither stiffness given: the model's default K_T = K_W
+    m4 = GFBModel("frictional", grid="13x5", friction=FrictionParameters(0.3))
+    assert m4.stick_stiffness == m4.foil_stiffness and m4.friction_coefficient == 0.3
+    with pytest.raises(ValueError, match="friction is a parameter of the frictional foil"):
+        GFBModel("elastic", grid="13x5", friction=fr)
+
+
+@pytest.mark.parametrize(
+    "table,match",
+    [
+        ("friction_coefficient = -0.1", r"friction\.friction_coefficient must be >= 0"),
+        ("friction_coefficient = nan", r"friction\.friction_coefficient must be finite"),
+        ("friction_coefficient = 'high'", r"friction\.friction_coefficient must be a number"),
+        ("friction_coefficient = true", r"friction\.friction_coefficient must be a number"),
+        ("stick_stiffness_n_m3 = 0", r"friction\.stick_stiffness_n_m3 must be positive"),
+        ("stick_stiffness_ratio = -1", r"friction\.stick_stiffness_ratio must be positive"),
+        ("stick_stiffness_ratio = inf", r"friction\.stick_stiffness_ratio must be finite"),
+        ("stick_stiffness_n_m3 = 1e9\nstick_stiffness_ratio = 1", "at most one"),
+        ("friction_coeficient = 0.1", r"unknown key friction\.friction_coeficient \(did you mean"),
+        ("[friction.deeper]\nx = 1", r"unknown key friction\.deeper"),
+    ],
+)
+def test_bad_friction_table_is_refused_naming_the_field(table, match, tmp_path):
+    from gfb_env.params import BearingParameters, read_bearing_file
+
+    p = tmp_path / "bad.toml"
+    p.write_text(f"[friction]\n{table}\n")
+    for read in (read_bearing_file, BearingParameters.from_toml):
+        with pytest.raises(ValueError, match=match) as e:
+            read(p)
+        assert str(p) in str(e.value) and "\n" not in str(e.value)
+
+
+def test_cli_takes_the_bearing_files_friction_and_refuses_a_bad_one(tmp_path, capsys):
+    from gfb_env.cli import main
+
+    argv = ["equilibrium", "--structure", "frictional", "--grid", "13x5", "--bearing-number", "0.6", "--json"]
+    p = tmp_path / "f.toml"
+    p.write_text("[friction]\nfriction_coefficient = 0.25\nstick_stiffness_ratio = 2\n")
+    assert main([*argv, "--bearing", str(p)]) == 0
+    d = json.loads(capsys.readouterr().out)
+    m = GFBModel("frictional", grid="13x5")
+    assert d["friction_coefficient"] == 0.25 and d["stick_stiffness"] == pytest.approx(2 * m.foil_stiffness)
+    assert main([*argv, "--bearing", str(p), "--friction-coefficient", "0.05"]) == 0  # the option wins
+    assert json.loads(capsys.readouterr().out)["friction_coefficient"] == 0.05
+    assert main([*argv, "--bearing", "table1_frictional"]) == 0  # the shipped one, by name
+    d = json.loads(capsys.readouterr().out)
+    assert d["friction_coefficient"] == 0.1 and d["stick_stiffness"] == pytest.approx(m.foil_stiffness, 1e-3)
+    # another structure ignores the table (the file describes the hardware)
+    assert main(["equilibrium", "--grid", "13x5", "--bearing-number", "0.6", "--bearing", str(p)]) == 0
+    capsys.readouterr()
+    # gfb bearing reports the table (and nothing new for a file without one)
+    assert main(["bearing", "--bearing", str(p), "--json"]) == 0
+    fr = json.loads(capsys.readouterr().out)["friction"]
+    assert fr["friction_coefficient"] == 0.25 and fr["stick_stiffness"] == pytest.approx(2 * m.foil_stiffness)
+    assert main(["bearing", "--bearing", "table1", "--json"]) == 0
+    assert "friction" not in json.loads(capsys.readouterr().out)
+    p.write_text("[friction]\nstick_stiffness_ratio = 0\n")
+    out = tmp_path / "out"
+    assert_refused_at_once(
+        main, [*argv, "--bearing", str(p)], "--bearing", "friction.stick_stiffness_ratio", capsys, out
+    )

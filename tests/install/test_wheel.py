@@ -32,6 +32,7 @@ DATA_FILES = (
     "gfb_env/data/hysteresis_map.csv",
     # the bearing files `gfb --bearing NAME` reads
     "gfb_env/data/bearings/table1.toml",
+    "gfb_env/data/bearings/table1_frictional.toml",
     "gfb_env/data/bearings/small_turbocompressor.toml",
     "gfb_env/data/hysteresis_map_tasks.csv",
     "gfb_agents/hyperparams/ppo.yml",

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 
 from gfb_env import jsonio
@@ -136,6 +137,18 @@ def cmd_runup(args: argparse.Namespace) -> int:
         progress=not args.json,
         unbalance=c["unbalance"],
     )
+    tr = res.trajectory
+    if res.status != "done" and tr.tau[-1] - tr.tau[0] < args.window:
+        # nothing to analyse: without this, the waterfall's "shorter than one window" reads as a bad
+        # --window (exit 2) when the bearing whirled from the first speed (e.g. the small turbocompressor
+        # at the default range, far above its onset)
+        print(
+            f"gfb runup: error: {res.message or res.status} at {b.speed_rpm_at(tr.bearing_number[-1]):.0f} "
+            f"rpm, before one waterfall window "
+            f"({args.window:g} tau): start below the onset (--speed-range; `gfb critical` gives it)",
+            file=sys.stderr,
+        )
+        return 1
     ru = analyse_run_up(res, b, args.window, lam_c)
     title = (
         f"{model.structure.value} foil, K_W={model.foil_stiffness:.3g}, D_W={args.foil_damping:.3g}, "

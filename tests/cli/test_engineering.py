@@ -131,6 +131,18 @@ def test_runup_stops_at_touchdown_and_reports_the_speed(tmp_path, capsys):
     assert d["min_film_thickness_um"] < 0.15 * 50
 
 
+def test_runup_that_touches_down_within_the_first_window_says_so(capsys):
+    """A run that touches down before one waterfall window (the small turbocompressor whirls from
+    10 881 rpm, the default range starts at Lambda = 0.5) is a computation's outcome: exit 1 naming the
+    touchdown and its speed, not exit 2 blaming the window."""
+    code, out, err = run(
+        capsys, "runup", "--bearing", SMALL, "--grid", "21x5", "--foil-damping", "4", "--json"
+    )
+    assert code == 1 and out == ""
+    assert len(err.strip().splitlines()) == 1
+    assert "touchdown" in err and "rpm" in err and "--speed-range" in err
+
+
 # ---------------------------------------------------------------------------- runup + unbalance
 #: sub-critical run (Table 1, D_W = 4: critical ~33 300 rpm on 33x7), slow enough for the 1x orbit
 #: to follow the speed (Lambda 0.30 -> 0.45 over ~2 800 tau)

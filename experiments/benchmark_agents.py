@@ -756,6 +756,13 @@ def _run(ap, a, tasks, episodes, chunk, env_kwargs, argv) -> int:
         for e in found:
             ladder_mod.register(e, replace=True)
     for d in a.learned:
+        taken = ladder_mod.registered().get(Path(d).name)
+        if taken is not None:  # registering it would silently replace that agent in the table
+            what = "a committed learned policy" if taken.kind == "learned" else f"the {taken.kind} agent"
+            ap.error(
+                f"--learned {d}: its name {taken.name!r} is already {what}, which it would replace; "
+                "train into (or rename to) a folder of another name"
+            )
         try:
             ladder_mod.register_learned(d)
         except (FileNotFoundError, ValueError) as exc:

@@ -175,6 +175,19 @@ def test_benchmark_refuses_before_any_episode(tmp_path, capsys, extra, fragment)
     assert not (tmp_path / "bench").exists()
 
 
+@pytest.mark.parametrize("name", ["RunUp-v1_ppo_fs4", "naive"])
+def test_benchmark_refuses_a_learned_run_named_as_a_registered_agent(tmp_path, capsys, name):
+    """README's quickstart trained into runs/RunUp-v1_ppo_fs4 and passed it to --learned: the run took the
+    committed policy's name and silently replaced it in the table it was meant to be compared with."""
+    run = tmp_path / name / "seed0"
+    run.mkdir(parents=True)
+    (run / "model.zip").write_bytes(b"")
+    (run / "run.json").write_text(json.dumps({"env_id": ENV}))
+    argv = [a for a in _bench(tmp_path, "--learned", str(tmp_path / name)) if a != "--no-learned"]
+    _refused(bench_main, argv, f"its name {name!r} is already", capsys)
+    assert not (tmp_path / "bench").exists()
+
+
 def test_benchmark_refuses_a_scheduler_that_does_not_answer(tmp_path, capsys):
     """Defect 7: Dask waited 30 s, then a traceback."""
     argv = _bench(tmp_path, "--scheduler", f"tcp://127.0.0.1:{_closed_port()}")

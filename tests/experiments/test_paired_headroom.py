@@ -83,3 +83,36 @@ def test_iqm_normalisation_puts_naive_and_oracle_iqms_at_0_and_1():
     assert abs(iqm(m_n)) > 0.1  # the inconsistency the option removes
     with pytest.raises(ValueError, match="reference must be one of"):
         normalized_scores(naive, naive, oracle, reference="median")
+
+
+def test_benchmark_writes_the_headroom_csv_with_paired_cis(tmp_path):
+    """A tiny validation run (2 seeds, 6 steps): the headroom file is named for its split, has exactly
+    the documented columns and equals paired_headroom of the JSON's per-episode scores."""
+    import csv
+    import json
+
+    from gfb_experiments.benchmark_agents import HEADROOM_COLUMNS, main
+
+    task = "gfb_env/RunUp-v1"
+    args = ["--quick", "--split", "validation", "--out", str(tmp_path), "--no-learned", "--tasks", task]
+    args += ["--agents", "map_informed_v1", "--reps", "200", "--normalise", "iqm"]
+    args += ["--env-kwargs", json.dumps({task: {"max_episode_steps": 6}})]
+    assert main(args) == 0
+    assert not (tmp_path / "benchmark_headroom.csv").exists()  # not the test split: not the table's name
+    with (tmp_path / "benchmark_headroom_validation.csv").open() as fh:
+        reader = csv.DictReader(fh)
+        assert reader.fieldnames == HEADROOM_COLUMNS
+        rows = list(reader)
+    assert len(rows) == 1 and rows[0]["task"] == task and rows[0]["best_rule"] == "map_informed_v1"
+    assert rows[0]["test_seeds"] == "2"
+    meta = json.loads((tmp_path / "benchmark_agents.json").read_text())
+    assert meta["normalise"] == "iqm" and meta["tasks"][task]["reference"] == "iqm"
+    ag = meta["tasks"][task]["agents"]
+    assert len(ag["map_informed_v1"]["returns"][0]) == 2 and len(ag["map_informed_v1"]["seeds"]) == 2
+    h = paired_headroom(ag["oracle_v1"]["normalized"], ag["map_informed_v1"]["normalized"], reps=200)
+    for col, k in (
+        ("headroom_iqm", "iqm"),
+        ("headroom_ci_low", "iqm_low"),
+        ("headroom_mean_ci_high", "mean_high"),
+    ):
+        assert float(rows[0][col]) == pytest.approx(h[k], abs=1e-12), col

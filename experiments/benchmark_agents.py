@@ -3,7 +3,7 @@
     python -m gfb_experiments.benchmark_agents [--split test] [--episodes 100] [--tasks ID,ID]
         [--agents NAME,NAME] [--out results] [--n-jobs N | --scheduler ADDRESS] [--chunk 10]
         [--policies DIR | --no-learned] [--learned DIR ...] [--env-kwargs JSON] [--reps N] [--merge]
-        [--quick]
+        [--quick] [--normalise mean|iqm]
 
 Method (``docs/agents.md``, "The benchmark's method"):
 
@@ -872,7 +872,10 @@ def _run(ap, a, tasks, episodes, chunk, env_kwargs, argv) -> int:
         kinds = {k: i for i, k in enumerate(ladder_mod.KINDS)}
         rows.sort(key=lambda r: (order.get(r["task"], 99), kinds.get(r["kind"], 9), r["agent"]))
         if (out / "benchmark_agents.json").exists():
-            old = json.loads((out / "benchmark_agents.json").read_text()).get("tasks", {})
+            old_meta = json.loads((out / "benchmark_agents.json").read_text())
+            if old_meta.get("normalise", "mean") != a.normalise:  # older tables have no key: means
+                print("warning: merged rows were normalised by another reference", file=sys.stderr)
+            old = old_meta.get("tasks", {})
             per_task = {**{k: v for k, v in old.items() if k not in per_task}, **per_task}
     seeds = split_seeds(a.split, episodes)
     meta = {

@@ -85,7 +85,7 @@ def test_iqm_normalisation_puts_naive_and_oracle_iqms_at_0_and_1():
         normalized_scores(naive, naive, oracle, reference="median")
 
 
-def test_benchmark_writes_the_headroom_csv_with_paired_cis(tmp_path):
+def test_benchmark_writes_the_headroom_csv_with_paired_cis(tmp_path, capsys):
     """A tiny validation run (2 seeds, 6 steps): the headroom file is named for its split, has exactly
     the documented columns and equals paired_headroom of the JSON's per-episode scores."""
     import csv
@@ -116,3 +116,7 @@ def test_benchmark_writes_the_headroom_csv_with_paired_cis(tmp_path):
         ("headroom_mean_ci_high", "mean_high"),
     ):
         assert float(rows[0][col]) == pytest.approx(h[k], abs=1e-12), col
+    # merging a mean-normalised run into this iqm-normalised table says so (the cache replays the chunks)
+    capsys.readouterr()
+    assert main([*args[:-4], "--normalise", "mean", "--merge", *args[-2:]]) == 0
+    assert "normalised by another reference" in capsys.readouterr().err

@@ -3,7 +3,7 @@
     python -m gfb_experiments.benchmark_agents [--split test] [--episodes 100] [--tasks ID,ID]
         [--agents NAME,NAME] [--out results] [--n-jobs N | --scheduler ADDRESS] [--chunk 10]
         [--policies DIR | --no-learned] [--learned DIR ...] [--env-kwargs JSON] [--reps N] [--merge]
-        [--quick]
+        [--quick] [--normalise mean|iqm]
 
 Method (``docs/agents.md``, "The benchmark's method"):
 
@@ -25,13 +25,17 @@ Writes ``<out>/benchmark_agents.csv`` (one row per (task, agent); columns :data:
 ``benchmark_agents.json`` (the rows, the normalisation per task, every episode's return and normalised
 score, the seeds and the command), ``benchmark_agents.md`` (the Markdown table),
 ``benchmark_agents_profile_<Task>.png`` (rliable performance profile per task) and
-``benchmark_agents_paths.png`` (each agent's first episode in the (Lambda, D_W) plane over the nominal
-map; the paths also in ``benchmark_agents_paths.json``).  ``--merge`` keeps the rows of other (task,
-agent) pairs of an existing table.  Learned policies that are expected but missing (no folder, or none
-in it) end the run at once with exit code 2; ``--no-learned`` runs without them.  So do, with one line
-before any episode, an unknown task or agent (or one that plays none of the ``--tasks``), an empty
-``--tasks`` / ``--agents``, ``--env-kwargs`` for an unknown task or that its task refuses, an
-``--out`` that cannot be written and a ``--scheduler`` that does not answer.
+``benchmark_agents_paths.png`` (each agent's first episode in the (Lambda, D_W) plane over the nominal map;
+the paths also in ``benchmark_agents_paths.json``). Where a task's run has its oracle and at least one rule,
+``benchmark_headroom.csv`` (``benchmark_headroom_<split>.csv`` for a split other than test; columns
+:data:`HEADROOM_COLUMNS`): the oracle's headroom over the best rule (highest normalised IQM) with paired
+bootstrap 95 % CIs over the evaluation seeds (:func:`benchmark_stats.paired_headroom`). ``--normalise iqm``
+puts the naive's and oracle's IQMs (not means, the default) at 0 and 1. ``--merge`` keeps the rows of other
+(task, agent) pairs of an existing table. Learned policies that are expected but missing (no folder, or none
+in it) end the run at once with exit code 2; ``--no-learned`` runs without them. So do, with one line before
+any episode, an unknown task or agent (or one that plays none of the ``--tasks``), an empty ``--tasks`` /
+``--agents``, ``--env-kwargs`` for an unknown task or that its task refuses, an ``--out`` that cannot be
+written and a ``--scheduler`` that does not answer.
 """
 
 from __future__ import annotations
@@ -61,8 +65,10 @@ from gfb_env.scripting import OneLineParser, check_output_dir
 from gfb_env.sweeps import check_scheduler
 from gfb_experiments.benchmark_stats import (
     DEFAULT_REPS,
+    REFERENCES,
     interval_estimates,
     normalized_scores,
+    paired_headroom,
     performance_profile_png,
 )
 
@@ -97,6 +103,18 @@ COLUMNS = [
 _INT_COLUMNS = ("episodes", "training_seeds", "touchdowns", "oracle_lost_seeds")
 _STR_COLUMNS = ("task", "agent", "kind", "split")
 CACHE_DIR = "benchmark_cache"
+#: columns of ``benchmark_headroom.csv`` (the oracle's headroom over the best rule, paired CIs)
+HEADROOM_COLUMNS = [
+    "task",
+    "best_rule",
+    "test_seeds",
+    "headroom_iqm",
+    "headroom_ci_low",
+    "headroom_ci_high",
+    "headroom_mean",
+    "headroom_mean_ci_low",
+    "headroom_mean_ci_high",
+]
 
 
 # ------------------------------------------------------------------------------------------- jobs
@@ -269,10 +287,12 @@ def run_chunks(
 
 # ---------------------------------------------------------------------------------------- reduce
 def reduce_results(
-    chunks: list[Chunk], results: dict[Chunk, dict], reps: int = DEFAULT_REPS
+    chunks: list[Chunk], results: dict[Chunk, dict], reps: int = DEFAULT_REPS, normalise: str = "mean"
 ) -> tuple[list[dict], dict, dict]:
-    """``(rows, per_task, paths)``: one row per (task, agent); per task the normalisation info and every
-    episode's returns and scores; the recorded first-episode paths."""
+    """``(rows, per_task, paths)``: one row per (task, agent); per task the normalisation info, every
+    episode's returns and scores and, where the task has its oracle and a rule, the oracle's headroom over
+    the best rule (``"headroom"``: :func:`benchmark_stats.paired_headroom`); the recorded first-episode
+    paths.  ``normalise``: the naive's and oracle's ``"mean"`` or ``"iqm"`` as the references."""
     groups: dict[tuple[str, str], list[Chunk]] = {}
     for c in chunks:
         groups.setdefault((c.task, c.entry.name), []).append(c)
@@ -295,7 +315,7 @@ def reduce_results(
         if ref_n and ref_o:
             rn = np.array([e.episode_return for e in ref_n[0]])
             ro = np.array([e.episode_return for e in ref_o[0]])
-            _, ninfo = normalized_scores(rn, rn, ro)
+            _, ninfo = normalized_scores(rn, rn, ro, reference=normalise)
             info.update(ninfo)
             seeds = [e.seed for e in ref_n[0]]
         else:
@@ -310,7 +330,7 @@ def reduce_results(
             if ref_n and ref_o:
                 if any([e.seed for e in r] != seeds for r in runs):
                     raise ValueError(f"{task} {name}: its seeds differ from the naive agent's")
-                scores, sinfo = normalized_scores(ret, rn, ro)
+                scores, sinfo = normalized_scores(ret, rn, ro, reference=normalise)
                 lost = sinfo["oracle_lost_seeds"]
             else:
                 scores, lost = np.full(ret.shape, math.nan), 0
@@ -362,6 +382,17 @@ def reduce_results(
                     "reason": first.termination_reason,
                 }
         info["agents"] = agents_out
+        task_rules = [
+            r
+            for r in rows
+            if r["task"] == task and r["kind"] == "rule" and math.isfinite(r["normalized_iqm"])
+        ]
+        if oc is not None and oc.name in agents_out and task_rules and not info.get("no_headroom"):
+            best = max(task_rules, key=lambda r: r["normalized_iqm"])
+            h = paired_headroom(
+                agents_out[oc.name]["normalized"], agents_out[best["agent"]]["normalized"], reps=reps
+            )
+            info["headroom"] = {"best_rule": best["agent"], "split": best["split"], **h}
         per_task[task] = info
     order = {k: i for i, k in enumerate(ladder_mod.KINDS)}
     rows.sort(key=lambda r: (list(per_task).index(r["task"]), order[r["kind"]], r["agent"]))
@@ -601,11 +632,36 @@ def profile_name(task: str) -> str:
     return f"benchmark_agents_profile_{task.split('/')[-1]}.png"
 
 
+def headroom_csv_name(split: str) -> str:
+    """``benchmark_headroom.csv`` for the test split, ``benchmark_headroom_<split>.csv`` for another
+    (a validation run's headroom is never mistaken for the table's)."""
+    return "benchmark_headroom.csv" if split == "test" else f"benchmark_headroom_{split}.csv"
+
+
+def write_headroom_csv(per_task: dict, path: Path) -> bool:
+    """One row per task with a ``"headroom"`` entry (columns :data:`HEADROOM_COLUMNS`); False (and no
+    file) if no task has one."""
+    hs = [(t, info["headroom"]) for t, info in per_task.items() if info.get("headroom")]
+    if not hs:
+        return False
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(HEADROOM_COLUMNS)
+        for t, h in hs:
+            w.writerow(
+                [t, h["best_rule"], h["seeds"]]
+                + [repr(float(h[k])) for k in ("iqm", "iqm_low", "iqm_high", "mean", "mean_low", "mean_high")]
+            )
+    return True
+
+
 def write_outputs(
     out: Path, rows: list[dict], per_task: dict, paths: dict, meta: dict, env_kwargs: dict[str, dict]
 ) -> None:
-    """CSV, JSON, Markdown, one performance profile per task, the paths figure."""
+    """CSV, JSON, Markdown, the headroom CSV (where a task has oracle and rule), one performance profile
+    per task, the paths figure."""
     write_csv(rows, out / "benchmark_agents.csv")
+    write_headroom_csv(per_task, out / headroom_csv_name(meta["split"]))
     (out / "benchmark_agents.md").write_text(markdown_table(rows))
     (out / "benchmark_agents_paths.json").write_text(
         jsonio.dumps({f"{t}|{n}": v for (t, n), v in paths.items()})
@@ -673,6 +729,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--chunk", type=int, default=10, help="seeds per cached job (>= 1)")
     ap.add_argument("--reps", type=int, default=DEFAULT_REPS, help="bootstrap replications (>= 100)")
+    ap.add_argument(
+        "--normalise",
+        default="mean",
+        choices=REFERENCES,
+        help="references of the normalised score: the naive's and oracle's means (default) or IQMs",
+    )
     ap.add_argument("--fresh", action="store_true", help="ignore the chunk cache (replay every chunk)")
     ap.add_argument(
         "--env-kwargs",
@@ -798,7 +860,7 @@ def _run(ap, a, tasks, episodes, chunk, env_kwargs, argv) -> int:
             file=sys.stderr,
         )
     results = run_chunks(chunks, out, a.n_jobs, a.scheduler, fresh=a.fresh)
-    rows, per_task, paths = reduce_results(chunks, results, reps=a.reps)
+    rows, per_task, paths = reduce_results(chunks, results, reps=a.reps, normalise=a.normalise)
     if a.merge:
         old_rows, old_paths = _read_previous(out)
         new = {(r["task"], r["agent"]) for r in rows}
@@ -810,7 +872,10 @@ def _run(ap, a, tasks, episodes, chunk, env_kwargs, argv) -> int:
         kinds = {k: i for i, k in enumerate(ladder_mod.KINDS)}
         rows.sort(key=lambda r: (order.get(r["task"], 99), kinds.get(r["kind"], 9), r["agent"]))
         if (out / "benchmark_agents.json").exists():
-            old = json.loads((out / "benchmark_agents.json").read_text()).get("tasks", {})
+            old_meta = json.loads((out / "benchmark_agents.json").read_text())
+            if old_meta.get("normalise", "mean") != a.normalise:  # older tables have no key: means
+                print("warning: merged rows were normalised by another reference", file=sys.stderr)
+            old = old_meta.get("tasks", {})
             per_task = {**{k: v for k, v in old.items() if k not in per_task}, **per_task}
     seeds = split_seeds(a.split, episodes)
     meta = {
@@ -820,6 +885,7 @@ def _run(ap, a, tasks, episodes, chunk, env_kwargs, argv) -> int:
         "tasks": list(dict.fromkeys(r["task"] for r in rows)),
         "env_kwargs": env_kwargs,
         "bootstrap_reps": a.reps,
+        "normalise": a.normalise,
         "command": "python -m gfb_experiments.benchmark_agents "
         + " ".join(shlex.quote(x) for x in (argv if argv is not None else sys.argv[1:])),
         "wall_time_s_last_run": round(time.perf_counter() - t0, 1),

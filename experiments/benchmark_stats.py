@@ -17,6 +17,11 @@
   ``(num_runs, num_tasks)`` = ``(episodes, runs)``: episodes are resampled *within* each training seed
   (the strata), and with two or more training seeds also the seeds themselves (rliable's
   ``task_bootstrap=True``), so the interval of a learned agent includes the seed-to-seed spread.
+* :func:`paired_headroom`: the headroom of the oracle over a rule (IQM(oracle) - IQM(rule) and the same for
+  the means, both on the normalised scale) with a *paired* bootstrap 95 % CI: the evaluation seeds are
+  resampled and both agents' scores of a drawn seed go together, so the seed-to-seed variation they share
+  (a hard draw is hard for both) cancels.  An agent with several training seeds is first averaged over
+  them per evaluation seed (the CI is then over evaluation seeds only, not over training seeds).
 * :func:`performance_profile_png`: rliable's score-distribution performance profile of every agent of a
   task (fraction of episodes with normalised score > tau), with bootstrap bands.
 
@@ -39,6 +44,7 @@ __all__ = [
     "normalized_scores",
     "iqm",
     "interval_estimates",
+    "paired_headroom",
     "performance_profile_png",
 ]
 
@@ -49,13 +55,23 @@ NO_HEADROOM_REL = 1e-9
 DEFAULT_REPS = 10_000
 
 
-def normalized_scores(returns: np.ndarray, naive: np.ndarray, oracle: np.ndarray) -> tuple[np.ndarray, dict]:
+#: the references a score can be normalised by: the naive's and oracle's means (the table's default) or IQMs
+REFERENCES = ("mean", "iqm")
+
+
+def normalized_scores(
+    returns: np.ndarray, naive: np.ndarray, oracle: np.ndarray, reference: str = "mean"
+) -> tuple[np.ndarray, dict]:
     """Per-episode normalised scores of ``returns`` (shape ``(runs, episodes)`` or ``(episodes,)``) on the
-    scale of the naive and oracle returns of the same seeds (shape ``(episodes,)`` each; their means are
-    the references).
+    scale of the naive and oracle returns of the same seeds (shape ``(episodes,)`` each).  ``reference``:
+    ``"mean"`` (0 = the naive's mean, 1 = the oracle's) or ``"iqm"`` (their IQMs: then the naive's and
+    oracle's normalised IQMs are exactly 0 and 1, consistent with an IQM table).
 
     Returns ``(scores, info)`` with ``scores`` of the shape of ``returns`` and ``info`` =
-    ``{"mean_gap", "median_gap", "oracle_lost_seeds", "no_headroom"}`` (module docstring)."""
+    ``{"mean_gap", "median_gap", "oracle_lost_seeds", "no_headroom", "reference", "reference_gap"}``
+    (module docstring; ``reference_gap`` = the oracle's reference minus the naive's, the scale)."""
+    if reference not in REFERENCES:
+        raise ValueError(f"reference must be one of {', '.join(REFERENCES)}, got {reference!r}")
     r = np.asarray(returns, dtype=np.float64)
     n = np.asarray(naive, dtype=np.float64)
     o = np.asarray(oracle, dtype=np.float64)
@@ -70,12 +86,19 @@ def normalized_scores(returns: np.ndarray, naive: np.ndarray, oracle: np.ndarray
         "median_gap": float(np.median(gap)) if gap.size else math.nan,
         "oracle_lost_seeds": int(np.sum(gap < 0)),
         "no_headroom": False,
+        "reference": reference,
     }
-    # a mean margin at the level of rounding (relative to the returns' size) is no scale either
+    if reference == "mean" or not gap.size:
+        zero, ref_gap = (float(np.mean(n)) if gap.size else math.nan), mean_gap
+    else:
+        zero = iqm(n)
+        ref_gap = iqm(o) - zero
+    info["reference_gap"] = ref_gap
+    # a margin at the level of rounding (relative to the returns' size) is no scale either
     scale = max(1.0, float(np.mean(np.abs(n))), float(np.mean(np.abs(o)))) if gap.size else 1.0
-    if not (math.isfinite(mean_gap) and mean_gap > NO_HEADROOM_REL * scale):
+    if not (math.isfinite(ref_gap) and ref_gap > NO_HEADROOM_REL * scale):
         return np.full(r.shape, math.nan), info | {"no_headroom": True}
-    return (r - float(np.mean(n))) / mean_gap, info
+    return (r - zero) / ref_gap, info
 
 
 def iqm(scores: np.ndarray) -> float:
@@ -145,6 +168,59 @@ def interval_estimates(
         "mean_low": float(c[0, 1]),
         "mean_high": float(c[1, 1]),
     }
+
+
+def _per_seed(x, name: str) -> np.ndarray:
+    """``x`` as one score per evaluation seed: a ``(runs, episodes)`` matrix is averaged over its runs."""
+    a = np.asarray(x, dtype=np.float64)
+    if a.ndim == 2:
+        a = a.mean(axis=0)  # several training seeds: their mean per evaluation seed
+    if a.ndim != 1 or a.size == 0:
+        raise ValueError(
+            f"{name} must be a non-empty (episodes,) or (runs, episodes) array, got shape {a.shape}"
+        )
+    if not np.isfinite(a).all():
+        raise ValueError(f"{name} has non-finite scores ({int(np.sum(~np.isfinite(a)))} of {a.size})")
+    return a
+
+
+def paired_headroom(
+    oracle: np.ndarray,
+    rule: np.ndarray,
+    reps: int = DEFAULT_REPS,
+    confidence: float = 0.95,
+    seed: int = BOOTSTRAP_SEED,
+    paired: bool = True,
+) -> dict[str, float]:
+    """Headroom of ``oracle`` over ``rule``: normalised scores on the same evaluation seeds in the same
+    order (``(episodes,)``, or ``(runs, episodes)``: averaged over the runs per seed first).
+
+    Returns ``{"iqm", "iqm_low", "iqm_high", "mean", "mean_low", "mean_high", "seeds"}``: IQM(oracle) -
+    IQM(rule) and mean(oracle) - mean(rule) with percentile bootstrap CIs.  ``paired`` (default): one draw
+    of seed indices serves both agents (module docstring); ``paired=False`` resamples them independently
+    (for comparison only: it ignores the pairing and overstates the spread of correlated scores)."""
+    o = _per_seed(oracle, "oracle")
+    r = _per_seed(rule, "rule")
+    if o.shape != r.shape:
+        raise ValueError(f"oracle and rule must score the same seeds, got {o.size} and {r.size} of them")
+    if isinstance(reps, bool) or not isinstance(reps, int) or reps < 100:
+        raise ValueError(f"reps must be an integer >= 100, got {reps!r}")
+    if not 0.0 < confidence < 1.0:
+        raise ValueError(f"confidence must lie in (0, 1), got {confidence!r}")
+    from scipy.stats import trim_mean
+
+    n = o.size
+    out = {"iqm": iqm(o) - iqm(r), "mean": float(o.mean() - r.mean()), "seeds": n}
+    rng = np.random.default_rng(seed)
+    idx_o = rng.integers(0, n, size=(reps, n))
+    idx_r = idx_o if paired else rng.integers(0, n, size=(reps, n))
+    # rliable's IQM is scipy's 25 % trimmed mean; per bootstrap row here
+    d_iqm = trim_mean(o[idx_o], 0.25, axis=1) - trim_mean(r[idx_r], 0.25, axis=1)
+    d_mean = o[idx_o].mean(axis=1) - r[idx_r].mean(axis=1)
+    q = 100.0 * np.array([(1.0 - confidence) / 2.0, (1.0 + confidence) / 2.0])
+    out["iqm_low"], out["iqm_high"] = (float(v) for v in np.percentile(d_iqm, q))
+    out["mean_low"], out["mean_high"] = (float(v) for v in np.percentile(d_mean, q))
+    return out
 
 
 def _score_distribution(scores: np.ndarray, taus: np.ndarray) -> np.ndarray:

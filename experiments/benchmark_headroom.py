@@ -1,0 +1,89 @@
+"""The oracle's headroom over the best rule, with paired bootstrap CIs, from a benchmark's JSON (no episode
+is re-played): ``benchmark_agents.json`` keeps every episode's normalised score per agent and seed.
+
+    python -m gfb_experiments.benchmark_headroom [results/benchmark_agents.json] [--out DIR] [--reps N]
+
+Writes ``benchmark_headroom.csv`` (``benchmark_headroom_<split>.csv`` for a split other than test; the
+columns of :data:`gfb_experiments.benchmark_agents.HEADROOM_COLUMNS`) beside the JSON or into ``--out``,
+exactly as a fresh ``python -m gfb_experiments.benchmark_agents`` run writes it: the best rule is the rule
+with the highest normalised IQM, the headroom IQM(oracle) - IQM(rule) and mean(oracle) - mean(rule) with
+95 % CIs from one bootstrap over the evaluation seeds shared by both agents
+(:func:`gfb_experiments.benchmark_stats.paired_headroom`).  A headroom claim needs its lower bound >= 0.2
+(issue 19).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from gfb_env.scripting import OneLineParser, check_output_dir
+from gfb_experiments.benchmark_agents import headroom_csv_name, write_headroom_csv
+from gfb_experiments.benchmark_stats import DEFAULT_REPS, paired_headroom
+
+__all__ = ["headroom_from_table", "main"]
+
+
+def headroom_from_table(table: dict, reps: int = DEFAULT_REPS) -> dict[str, dict]:
+    """``{task: {"headroom": {...}}}`` from a ``benchmark_agents.json`` document (its ``rows`` and its
+    per-task ``agents`` scores); a task without its oracle or a rule has no entry."""
+    if not isinstance(table, dict) or "rows" not in table or "tasks" not in table:
+        raise ValueError("table: not a benchmark_agents.json document (no 'rows' and 'tasks')")
+    out: dict[str, dict] = {}
+    for task, info in table["tasks"].items():
+        agents = info.get("agents", {})
+        oracle = info.get("oracle")
+        rules = [
+            r
+            for r in table["rows"]
+            if r["task"] == task and r["kind"] == "rule" and math.isfinite(r["normalized_iqm"])
+        ]
+        if oracle not in agents or not rules:
+            continue
+        best = max(rules, key=lambda r: r["normalized_iqm"])
+        h = paired_headroom(agents[oracle]["normalized"], agents[best["agent"]]["normalized"], reps=reps)
+        out[task] = {"headroom": {"best_rule": best["agent"], "split": best["split"], **h}}
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = OneLineParser(
+        prog="python -m gfb_experiments.benchmark_headroom", description=__doc__.splitlines()[0]
+    )
+    ap.add_argument("table", nargs="?", default="results/benchmark_agents.json", help="benchmark JSON")
+    ap.add_argument("--out", default=None, help="folder of the CSV (default: the JSON's folder)")
+    ap.add_argument(
+        "--reps", type=int, default=DEFAULT_REPS, help="bootstrap resamples (default %(default)s)"
+    )
+    a = ap.parse_args(argv)
+    path = Path(a.table)
+    if not path.is_file():
+        ap.error(f"table {a.table}: no such file")
+    try:
+        out = check_output_dir(a.out if a.out is not None else str(path.parent), "--out")
+        table = json.loads(path.read_text())
+        per_task = headroom_from_table(table, a.reps)
+    except (ValueError, json.JSONDecodeError) as exc:
+        ap.error(" ".join(str(exc).split()))
+    if not per_task:
+        ap.error(f"table {a.table}: no task has both its oracle and a rule")
+    out.mkdir(parents=True, exist_ok=True)
+    csv_path = out / headroom_csv_name(table.get("split", "test"))
+    write_headroom_csv(per_task, csv_path)
+    for task, info in per_task.items():
+        h = info["headroom"]
+        claim = (
+            "holds" if h["iqm_low"] >= 0.2 and h["mean_low"] >= 0.2 else "NOT established (lower bound < 0.2)"
+        )
+        print(
+            f"{task}: best rule {h['best_rule']}, n = {h['seeds']}: headroom IQM {h['iqm']:.3f} "
+            f"[{h['iqm_low']:.3f}, {h['iqm_high']:.3f}], mean {h['mean']:.3f} [{h['mean_low']:.3f}, "
+            f"{h['mean_high']:.3f}]; headroom >= 0.2: {claim}"
+        )
+    print(f"wrote {csv_path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,66 @@
+"""The headroom CSV recomputed from a benchmark JSON equals what the benchmark run itself computes (the same
+best rule and paired bootstrap); bad tables are refused in one line."""
+
+import csv
+
+import numpy as np
+import pytest
+
+from gfb_experiments.benchmark_agents import HEADROOM_COLUMNS
+from gfb_experiments.benchmark_headroom import headroom_from_table, main
+from gfb_experiments.benchmark_stats import paired_headroom
+
+
+def _table(rng):
+    n = 40
+    oracle = 1.0 + 0.05 * rng.standard_normal(n)
+    good = oracle - 0.3 + 0.02 * rng.standard_normal(n)
+    weak = oracle - 0.6 + 0.02 * rng.standard_normal(n)
+    rows = [
+        {"task": "T", "agent": "oracle_v1", "kind": "oracle", "split": "test", "normalized_iqm": 1.0},
+        {"task": "T", "agent": "good", "kind": "rule", "split": "test", "normalized_iqm": 0.7},
+        {"task": "T", "agent": "weak", "kind": "rule", "split": "test", "normalized_iqm": 0.4},
+        {"task": "T", "agent": "ppo", "kind": "learned", "split": "test", "normalized_iqm": 0.9},
+    ]
+    agents = {
+        "oracle_v1": {"normalized": [oracle.tolist()]},
+        "good": {"normalized": [good.tolist()]},
+        "weak": {"normalized": [weak.tolist()]},
+        "ppo": {"normalized": [(oracle - 0.1).tolist()]},
+    }
+    return (
+        {"split": "test", "rows": rows, "tasks": {"T": {"oracle": "oracle_v1", "agents": agents}}},
+        oracle,
+        good,
+    )
+
+
+def test_the_best_rule_and_the_paired_headroom(rng):
+    table, oracle, good = _table(rng)
+    h = headroom_from_table(table, reps=2000)["T"]["headroom"]
+    assert h["best_rule"] == "good"  # the best RULE: the learned agent does not count
+    assert h == {"best_rule": "good", "split": "test", **paired_headroom([oracle], [good], reps=2000)}
+    assert h["iqm_low"] < 0.3 < h["iqm_high"] and h["mean_low"] < 0.3 < h["mean_high"]
+
+
+def test_the_command_writes_the_csv(tmp_path, rng, capsys):
+    import json
+
+    table, *_ = _table(rng)
+    p = tmp_path / "benchmark_agents.json"
+    p.write_text(json.dumps(table))
+    assert main([str(p), "--reps", "500"]) == 0
+    with (tmp_path / "benchmark_headroom.csv").open() as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0] == HEADROOM_COLUMNS and rows[1][:3] == ["T", "good", "40"]
+    assert np.isfinite([float(x) for x in rows[1][3:]]).all()
+    assert "headroom >= 0.2: holds" in capsys.readouterr().out
+
+
+def test_a_table_that_is_not_a_benchmark_is_refused(tmp_path, capsys):
+    p = tmp_path / "x.json"
+    p.write_text("{}")
+    with pytest.raises(SystemExit) as exc:
+        main([str(p)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert exc.value.code == 2 and len(err) == 1 and "not a benchmark_agents.json document" in err[0]

@@ -29,7 +29,8 @@ A learned entry has one run per independent training seed (``run_paths``); the b
 on the same test seeds and the statistics stratify by run.
 
 The built-in ladder (:func:`default_ladder`): on every task the naive ramp (:class:`NaiveRampAgent`), the
-v1 rules of :mod:`gfb_agents.rules` on the tasks each was written for,
+``hold`` reference (:class:`~gfb_agents.rules.naive.HoldStartAgent`: the start speed held at D_W = 1, kind
+``rule`` because the normalisation's 0 is the one naive entry; issue 19), the v1 rules of :mod:`gfb_agents.rules` on the tasks each was written for,
 :class:`~gfb_agents.oracles.commanded.CommandedOracle` (``oracle_v1``) as the oracle, and the committed
 learned policies of their task (every ``gfb_agents/policies/<agent>/`` folder, one run per ``seed*/``).
 The rules and the oracle are built only here (:func:`build`, or an entry's :meth:`AgentEntry.build`).
@@ -45,7 +46,7 @@ from pathlib import Path
 
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.policy import ControlSpec, Policy
-from gfb_agents.rules.naive import NAIVE_DAMPING, NAIVE_MARGIN, NaiveRampAgent
+from gfb_agents.rules.naive import NAIVE_DAMPING, NAIVE_MARGIN, HoldStartAgent, NaiveRampAgent
 
 __all__ = [
     "KINDS",
@@ -57,6 +58,7 @@ __all__ = [
     "registered",
     "build",
     "make_naive",
+    "make_hold",
     "make_commanded_oracle",
     "scoped",
     "register_learned",
@@ -141,6 +143,11 @@ def make_naive(env) -> NaiveRampAgent:
     """The naive ramp for ``env`` (:class:`NaiveRampAgent` with D_W = 1 and a 5 % margin)."""
     nmap = NominalMap.from_env(env)
     return NaiveRampAgent(ControlSpec.from_env(env, nmap), nmap, NAIVE_DAMPING, NAIVE_MARGIN)
+
+
+def make_hold(env) -> HoldStartAgent:
+    """The ``hold`` reference for ``env``: start speed held (action 0), the naive's D_W = 1."""
+    return HoldStartAgent(ControlSpec.from_env(env, NominalMap.from_env(env)), NAIVE_DAMPING)
 
 
 def _make_map_informed_v1(env) -> Policy:
@@ -285,6 +292,14 @@ def default_ladder() -> dict[str, AgentEntry]:
     """The built-in entries (module docstring), by name; learned ones from the committed policies."""
     out = [
         AgentEntry("naive", "naive", V1_TASKS, make_naive, description="D_W = 1, motor limit, hold"),
+        # a reference, kind "rule" since each task has one naive (the normalisation's 0 stays naive)
+        AgentEntry(
+            "hold",
+            "rule",
+            V1_TASKS,
+            make_hold,
+            description="reference (issue 19), not a controller: holds the start speed at D_W = 1",
+        ),
     ]
     # the v1 rules (gfb_agents.rules): each on the tasks it was written for
     for name, tasks, factory, desc in _V1_RULES:

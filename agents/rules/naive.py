@@ -9,7 +9,7 @@ import numpy as np
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.policy import ControlSpec, ScriptedPolicy
 
-__all__ = ["NaiveRampAgent", "NAIVE_DAMPING", "NAIVE_MARGIN", "SPEED_COMMAND"]
+__all__ = ["HoldStartAgent", "NaiveRampAgent", "NAIVE_DAMPING", "NAIVE_MARGIN", "SPEED_COMMAND"]
 
 #: name of the v1 observation entry of the commanded speed (``gfb_env.envs.units.SPEED_COMMAND``)
 SPEED_COMMAND = "speed_command"
@@ -51,6 +51,21 @@ class NaiveRampAgent(ScriptedPolicy):
 
     def _act(self, obs, rpm, m):
         return [self.track(m, rpm, self.setpoint_rpm(obs)), self.spec.damping_action(self.damping)]
+
+
+class HoldStartAgent(ScriptedPolicy):
+    """``hold``: a reference, not a controller -- it holds the start speed (speed action 0, no
+    acceleration) at the naive's damping ``D_W = damping`` throughout (issue 19: the zero of the
+    normalised scale should be the better of this and the naive ramp; on RunUpRandomized-v1 the ramp
+    touches down on many draws where staying put does not).  It reads nothing of the observation."""
+
+    def __init__(self, spec: ControlSpec, damping: float = 1.0, name: str = "hold"):
+        super().__init__(name, spec)
+        self.damping = float(damping)
+        self._action = [0.0, spec.damping_action(self.damping)]
+
+    def _act(self, obs, rpm, m):
+        return list(self._action)
 
 
 #: the naive agent's damping and margin below Lambda_c(D_W) of the nominal bearing (issue 11)

@@ -42,6 +42,33 @@ def test_every_baseline_completes_an_episode(task):
     env.close()
 
 
+@pytest.mark.parametrize("task", TASKS)
+def test_hold_reference_holds_the_start_speed_at_the_naive_damping(task):
+    # issue 19: the competent zero is the better of the naive ramp and "hold the start speed"; hold is a
+    # rule-kind reference so the normalisation's 0 stays the one naive entry
+    from gfb_agents.ladder import naive_for
+    from gfb_agents.rules.naive import NAIVE_DAMPING
+
+    (entry,) = ladder_for(task, ["hold"])
+    assert entry.kind == "rule" and "reference" in entry.description
+    assert naive_for(task).name == "naive"
+    env = gym.make(task, max_episode_steps=SHORT)
+    agent = entry.build(env)
+    u = env.unwrapped
+    obs, _ = env.reset(seed=3)
+    speed0 = u.observation_layout.speed_rpm(obs)
+    for k in range(SHORT):
+        a, _ = agent.predict(obs, episode_start=k == 0)
+        np.testing.assert_array_equal(a, np.zeros(2, dtype=np.float32))  # no acceleration, D_W = 1
+        assert u.actions.damping_from_action(float(a[1])) == pytest.approx(NAIVE_DAMPING)
+        obs, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            break
+    if not term:  # the commanded speed is not followed: the speed stays where the episode started
+        assert u.observation_layout.speed_rpm(obs) == pytest.approx(speed0, rel=1e-6)
+    env.close()
+
+
 def test_scripted_interface_batch_and_reset():
     env = gym.make("gfb_env/RunUp-v1")
     (entry,) = ladder_for("gfb_env/RunUp-v1", ["map_informed_v1"])

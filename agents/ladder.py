@@ -28,10 +28,11 @@ the evaluation sweep builds the agents in its worker processes.
 A learned entry has one run per independent training seed (``run_paths``); the benchmark plays every run
 on the same test seeds and the statistics stratify by run.
 
-The built-in ladder (:func:`default_ladder`): on every task the naive ramp (:class:`NaiveRampAgent`), the
-``hold`` reference (:class:`~gfb_agents.rules.naive.HoldStartAgent`: the start speed held at D_W = 1, kind
-``rule`` because the normalisation's 0 is the one naive entry; issue 19), the v1 rules of
-:mod:`gfb_agents.rules` on the tasks each was written for, :class:`~gfb_agents.oracles.commanded.CommandedOracle` (``oracle_v1``) as the oracle, and the committed
+The built-in ladder (:func:`default_ladder`): on every task the naive ramp (:class:`NaiveRampAgent`),
+the ``hold`` reference (:class:`~gfb_agents.rules.naive.HoldStartAgent`: the start speed held at D_W = 1,
+kind ``rule`` because the normalisation's 0 is the one naive entry; issue 19), the v1 rules of
+:mod:`gfb_agents.rules` on the tasks each was written for,
+:class:`~gfb_agents.oracles.commanded.CommandedOracle` (``oracle_v1``) as the oracle, and the committed
 learned policies of their task (every ``gfb_agents/policies/<agent>/`` folder, one run per ``seed*/``).
 The rules and the oracle are built only here (:func:`build`, or an entry's :meth:`AgentEntry.build`).
 """

@@ -286,6 +286,43 @@ def run_chunks(
 
 
 # ---------------------------------------------------------------------------------------- reduce
+def _set_headroom(task: str, info: dict, rows: list[dict], reps: int) -> None:
+    """``info["headroom"]``: the oracle's over the best rule of ``task`` (highest normalised IQM among
+    ``rows``), :func:`benchmark_stats.paired_headroom` of their per-seed scores in ``info["agents"]``;
+    removed where the task has no oracle or no rule with scores."""
+    agents = info.get("agents", {})
+    rules = [
+        r
+        for r in rows
+        if r["task"] == task
+        and r["kind"] == "rule"
+        and r["agent"] in agents
+        and math.isfinite(r["normalized_iqm"])
+    ]
+    info.pop("headroom", None)
+    if info.get("oracle") in agents and rules:
+        best = max(rules, key=lambda r: r["normalized_iqm"])
+        h = paired_headroom(
+            agents[info["oracle"]]["normalized"], agents[best["agent"]]["normalized"], reps=reps
+        )
+        info["headroom"] = {"best_rule": best["agent"], "split": best["split"], **h}
+
+
+def merge_tasks(old: dict, new: dict, rows: list[dict], reps: int) -> dict:
+    """The per-task entries of a ``--merge`` run: a task only in one table keeps its entry; a task in
+    both keeps every agent's per-episode scores of the old table that the new run did not re-play (the
+    new run's normalisation references, and its re-played agents, replace the old), and its headroom is
+    recomputed from the merged agents and ``rows``."""
+    out = {**old, **new}
+    for task in old.keys() & new.keys():
+        merged = {**old[task], **new[task]}
+        merged["agents"] = {**old[task].get("agents", {}), **new[task].get("agents", {})}
+        if not merged.get("no_headroom"):
+            _set_headroom(task, merged, rows, reps)
+        out[task] = merged
+    return out
+
+
 def reduce_results(
     chunks: list[Chunk], results: dict[Chunk, dict], reps: int = DEFAULT_REPS, normalise: str = "mean"
 ) -> tuple[list[dict], dict, dict]:
@@ -382,17 +419,8 @@ def reduce_results(
                     "reason": first.termination_reason,
                 }
         info["agents"] = agents_out
-        task_rules = [
-            r
-            for r in rows
-            if r["task"] == task and r["kind"] == "rule" and math.isfinite(r["normalized_iqm"])
-        ]
-        if oc is not None and oc.name in agents_out and task_rules and not info.get("no_headroom"):
-            best = max(task_rules, key=lambda r: r["normalized_iqm"])
-            h = paired_headroom(
-                agents_out[oc.name]["normalized"], agents_out[best["agent"]]["normalized"], reps=reps
-            )
-            info["headroom"] = {"best_rule": best["agent"], "split": best["split"], **h}
+        if not info.get("no_headroom"):
+            _set_headroom(task, info, rows, reps)
         per_task[task] = info
     order = {k: i for i, k in enumerate(ladder_mod.KINDS)}
     rows.sort(key=lambda r: (list(per_task).index(r["task"]), order[r["kind"]], r["agent"]))
@@ -875,8 +903,7 @@ def _run(ap, a, tasks, episodes, chunk, env_kwargs, argv) -> int:
             old_meta = json.loads((out / "benchmark_agents.json").read_text())
             if old_meta.get("normalise", "mean") != a.normalise:  # older tables have no key: means
                 print("warning: merged rows were normalised by another reference", file=sys.stderr)
-            old = old_meta.get("tasks", {})
-            per_task = {**{k: v for k, v in old.items() if k not in per_task}, **per_task}
+            per_task = merge_tasks(old_meta.get("tasks", {}), per_task, rows, a.reps)
     seeds = split_seeds(a.split, episodes)
     meta = {
         "split": a.split,

@@ -64,3 +64,26 @@ def test_a_table_that_is_not_a_benchmark_is_refused(tmp_path, capsys):
         main([str(p)])
     err = capsys.readouterr().err.strip().splitlines()
     assert exc.value.code == 2 and len(err) == 1 and "not a benchmark_agents.json document" in err[0]
+
+
+def test_merge_keeps_the_old_agents_scores_and_recomputes_the_headroom(rng):
+    """``benchmark_agents --merge`` used to replace a re-run task's whole entry, dropping the per-episode
+    scores of every agent it did not re-play (and with them the headroom's data)."""
+    from gfb_experiments.benchmark_agents import merge_tasks
+
+    table, oracle, good = _table(rng)
+    old = table["tasks"]
+    new = {"T": {"oracle": "oracle_v1", "agents": {"oracle_v1": old["T"]["agents"]["oracle_v1"]}}}
+    new["T"]["agents"]["hold"] = {"normalized": [(oracle - 1.2).tolist()]}
+    rows = [
+        *table["rows"],
+        {"task": "T", "agent": "hold", "kind": "rule", "split": "test", "normalized_iqm": -0.2},
+    ]
+    merged = merge_tasks(old, new, rows, reps=500)
+    assert set(merged["T"]["agents"]) == {"oracle_v1", "good", "weak", "ppo", "hold"}
+    assert merged["T"]["headroom"]["best_rule"] == "good"
+    assert merged["T"]["headroom"] == {
+        "best_rule": "good",
+        "split": "test",
+        **paired_headroom([oracle], [good], reps=500),
+    }

@@ -34,6 +34,7 @@ from gfb_env.scripting import OneLineParser, check_output_dir  # noqa: E402
 
 KW, KT = 1.0, 0.5
 FINE_SCAN_STEP = 0.01  # the scan's load stages (critical_bearing_number's default is 0.05)
+SPINUP_STEP = 0.002  # monotone spin-up (same Lambda_c to 1e-4 at 0.004 and 0.001)
 MUS = (0.0, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08, 0.09, 0.1, 0.12, 0.14, 0.16, 0.18, 0.2,
        0.22, 0.24, 0.26, 0.28, 0.3, 0.32, 0.34, 0.4, 0.5)  # fmt: skip
 
@@ -74,6 +75,21 @@ def frozen_slider_critical(state: np.ndarray, lam_c: float, grid: str, half_widt
             xtol=1e-7,
         )
     )
+
+
+def spinup_critical(model: GFBModel, step: float = SPINUP_STEP, start: float = 0.1, stop: float = 1.0):
+    """Lambda_c along a monotone quasi-static spin-up: each equilibrium warm-started only from the previous
+    (smaller) Lambda, so every slider sees the load path of a slow run-up; the crossing is interpolated
+    linearly in the growth rate between two steps.  Returns (Lambda_c, sliders held, state above)."""
+    s, prev = None, None
+    for lam in np.arange(start, stop, step):
+        st = linear_stability(model, float(lam), guess=s)
+        s, g = st.state, st.growth_rate
+        if prev is not None and prev[1] < 0 <= g:
+            lc = prev[0] + (lam - prev[0]) * (-prev[1]) / (g - prev[1])
+            return float(lc), model.layout.size - len(model.linearised_states(s, 1.0)), s
+        prev = (float(lam), g)
+    raise RuntimeError(f"no crossing on the spin-up to Lambda = {stop}")
 
 
 def onset(mu: float, grid: str, scan_step: float = 0.05) -> dict:
@@ -130,12 +146,15 @@ def main(argv: list[str] | None = None) -> int:
         fine = onset(mu, a.grid, scan_step=FINE_SCAN_STEP)
         r["lambda_c_fine_scan"] = fine["lambda_c"]
         r["n_stuck_fine_scan"] = fine["n_stuck"]
+        lc_up, held_up, _ = spinup_critical(frictional(mu, a.grid))
+        r["lambda_c_spinup"], r["n_stuck_spinup"] = lc_up, int(held_up)
         r["lambda_c_frozen_sliders"] = frozen_slider_critical(r["_state"], r["lambda_c"], a.grid)
         rows.append(r)
         print(f"mu={mu:5.3f} Lc={r['lambda_c']:.6f} stuck={r['n_stuck']:2d} "
               f"({r['n_stuck_loaded']} loaded) {r['pattern']} k_mean={r['k_eff_mean']:.4f} "
               f"frozen={r['lambda_c_frozen_sliders']:.6f} Smax={r['slider_offset_max']:.4f} "
-              f"fine={r['lambda_c_fine_scan']:.6f} ({r['n_stuck_fine_scan']} stuck)", flush=True)  # fmt: skip
+              f"fine={r['lambda_c_fine_scan']:.6f} ({r['n_stuck_fine_scan']} stuck) "
+              f"spinup={r['lambda_c_spinup']:.6f} ({r['n_stuck_spinup']} stuck)", flush=True)  # fmt: skip
     summary = {
         "grid": a.grid,
         "K_W": KW,
@@ -161,6 +180,7 @@ def plot(rows: list[dict], path: Path) -> None:
     fig, ax = plt.subplots(3, 1, figsize=(7, 8), sharex=True)
     ax[0].plot(mu, [r["lambda_c"] for r in rows], "o-", label="scan step 0.05 (default)")
     ax[0].plot(mu, [r["lambda_c_fine_scan"] for r in rows], "x--", label=f"scan step {FINE_SCAN_STEP}")
+    ax[0].plot(mu, [r["lambda_c_spinup"] for r in rows], "k^-", label=f"monotone spin-up, step {SPINUP_STEP}")
     ax[0].plot(mu, [r["lambda_c_frozen_sliders"] for r in rows], "+", ms=10, label="sliders held at S")
     ax[0].axhline(0.565238, color="k", lw=0.8, ls=":", label="stuck foil K_W+K_T")
     ax[0].axhline(0.574771, color="gray", lw=0.8, ls=":", label="free foil K_W")
@@ -169,7 +189,8 @@ def plot(rows: list[dict], path: Path) -> None:
     ax[1].plot(mu, [r["n_stuck"] for r in rows], "s-", label="stuck columns (of 20)")
     ax[1].plot(mu, [r["n_stuck_fine_scan"] for r in rows], "x--", label=f"stuck, scan step {FINE_SCAN_STEP}")
     ax[1].plot(mu, [r["n_stuck_loaded"] for r in rows], "^-", label="stuck, loaded (Pbar > 1)")
-    ax[1].legend()
+    ax[1].plot(mu, [r["n_stuck_spinup"] for r in rows], "k^-", label="stuck, monotone spin-up")
+    ax[1].legend(fontsize=7)
     ax[1].set_ylabel("columns")
     ax[2].plot(mu, [r["k_eff_mean"] for r in rows], "o-", label="mean tangent stiffness")
     mm = np.linspace(0, 1 / 3, 50)

@@ -146,15 +146,17 @@ def main(argv: list[str] | None = None) -> int:
         fine = onset(mu, a.grid, scan_step=FINE_SCAN_STEP)
         r["lambda_c_fine_scan"] = fine["lambda_c"]
         r["n_stuck_fine_scan"] = fine["n_stuck"]
-        lc_up, held_up, _ = spinup_critical(frictional(mu, a.grid))
+        m_up = frictional(mu, a.grid)
+        lc_up, held_up, s_up = spinup_critical(m_up)
         r["lambda_c_spinup"], r["n_stuck_spinup"] = lc_up, int(held_up)
+        r["pattern_spinup"] = "".join("s" if x else "-" for x in column_states(m_up, s_up)["stuck"])
         r["lambda_c_frozen_sliders"] = frozen_slider_critical(r["_state"], r["lambda_c"], a.grid)
         rows.append(r)
         print(f"mu={mu:5.3f} Lc={r['lambda_c']:.6f} stuck={r['n_stuck']:2d} "
               f"({r['n_stuck_loaded']} loaded) {r['pattern']} k_mean={r['k_eff_mean']:.4f} "
               f"frozen={r['lambda_c_frozen_sliders']:.6f} Smax={r['slider_offset_max']:.4f} "
               f"fine={r['lambda_c_fine_scan']:.6f} ({r['n_stuck_fine_scan']} stuck) "
-              f"spinup={r['lambda_c_spinup']:.6f} ({r['n_stuck_spinup']} stuck)", flush=True)  # fmt: skip
+              f"spinup={r['lambda_c_spinup']:.6f} {r['pattern_spinup']}", flush=True)  # fmt: skip
     summary = {
         "grid": a.grid,
         "K_W": KW,

@@ -48,3 +48,15 @@ def test_lambda_c_jumps_where_the_stuck_set_changes():
         out[mu] = (cp.critical_bearing_number, n_held(m, cp.state))
     assert out[0.24][1] == 20 and out[0.26][1] < 12, out
     assert out[0.26][0] - out[0.24][0] > 2e-3, out
+
+
+def test_monotone_spinup_gives_a_definite_lambda_c_the_default_scan_does_not():
+    """mu_C = 0.1: along a monotone spin-up (each equilibrium warm-started from the previous Lambda only)
+    Lambda_c is the same at steps 0.004 and 0.002 (0.58039, 7 sliders stuck); the default scan's history
+    (0.05 load stages and brent's iterates warm-started from above and below) gives 0.57456, all stuck."""
+    from gfb_experiments.friction_onset import spinup_critical
+
+    up = {h: spinup_critical(frictional(0.1), step=h)[:2] for h in (0.004, 0.002)}
+    assert abs(up[0.004][0] - up[0.002][0]) < 1e-4 and up[0.004][1] == up[0.002][1] == 7, up
+    scan = critical_bearing_number(frictional(0.1)).critical_bearing_number
+    assert up[0.002][0] - scan > 3e-3, (up, scan)

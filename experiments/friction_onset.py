@@ -34,6 +34,8 @@ from gfb_env.scripting import OneLineParser, check_output_dir  # noqa: E402
 
 KW, KT = 1.0, 0.5
 FINE_SCAN_STEP = 0.01  # the scan's load stages (critical_bearing_number's default is 0.05)
+#: spin-up transients: mu_C = 0 (control), 0.06 (the highest Lambda_c, 15 sliders on their limit), 0.1, 0.2
+SPINUP_TRANSIENT_MUS = (0.0, 0.06, 0.1, 0.2)
 SPINUP_STEP = 0.002  # monotone spin-up (same Lambda_c to 1e-4 at 0.004 and 0.001)
 MUS = (0.0, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08, 0.09, 0.1, 0.12, 0.14, 0.16, 0.18, 0.2,
        0.22, 0.24, 0.26, 0.28, 0.3, 0.32, 0.34, 0.4, 0.5)  # fmt: skip
@@ -130,6 +132,32 @@ def transient(r: dict, delta: float, duration: float = 600.0, kick: float = 1e-3
     return out
 
 
+def spinup_transient(
+    mu: float, grid: str, offsets=(-0.02, -0.01, -0.005, 0.005), kick: float = 1e-4, duration: float = 600.0
+) -> dict:
+    """Small rotor kicks from the spin-up's equilibria near its Lambda_c (each reached by the same monotone
+    march): amplitude ratio late/early (max |xi - xi_0| and peak-to-peak) and the late mean drift."""
+    m = frictional(mu, grid)
+    L = m.layout
+    lc, _, _ = spinup_critical(m)
+    out = {"lambda_c_spinup": lc, "kick": kick, "runs": {}}
+    for d in offsets:
+        lam = lc + d
+        s = None
+        for x in [*np.arange(0.1, lam, SPINUP_STEP), lam]:
+            s = find_equilibrium(m, float(x), guess=s)
+        it = TrapezoidalIntegrator(m, L.with_rotor(s, *(L.rotor(s)[:2] + [kick, 0.0])), lam)
+        x = it.advance(duration, record_interval=1.0).trajectory.xi - L.rotor(s)[0]
+        early, late = x[50:150], x[-100:]
+        out["runs"][f"{d:+.3f}"] = {
+            "bearing_number": float(lam),
+            "ratio_late_early": float(np.abs(late).max() / np.abs(early).max()),
+            "ratio_peak_to_peak": float(np.ptp(late) / np.ptp(early)),
+            "late_mean_drift": float(late.mean()),
+        }
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--grid", default="21x5")
@@ -167,6 +195,10 @@ def main(argv: list[str] | None = None) -> int:
         r = min(rows, key=lambda x: abs(x["mu"] - a.transient_mu))
         summary["transient"] = {"mu": r["mu"], "delta": a.delta, "runs": transient(r, a.delta)}
         print(summary["transient"], flush=True)
+        summary["transient_spinup"] = {}
+        for mu in SPINUP_TRANSIENT_MUS:
+            summary["transient_spinup"][f"{mu:g}"] = spinup_transient(mu, a.grid)
+            print(mu, summary["transient_spinup"][f"{mu:g}"], flush=True)
     jsonio.write_json(out / "summary.json", summary)
     plot(rows, out / "onset.png")
     return 0

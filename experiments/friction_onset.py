@@ -7,8 +7,10 @@ limit (kept on the slip branch).  On the slip branch F = sigma mu_C |Pbar - 1| (
 the force balance K_W Q + F = -(Pbar - 1) the column's tangent stiffness -d(Pbar - 1)/dQ is
 ``K_W / (1 + sigma mu_C sign(Pbar - 1))``: ``K_W / (1 - mu_C)`` for a column loaded from S = 0 (the friction
 resists the load), which reaches the stuck K_W + K_T at mu_C = K_T / (K_W + K_T).  Reported per column
-(with its angle and load sign) and summarised.  Optionally a transient check at one mu_C: the rotor
-kicked slightly from the scan's equilibrium at Lambda_c -/+ delta.
+(with its angle and load sign) and summarised; also Lambda_c with the scan step 0.01, with every slider
+held where the scan left it, and along a monotone spin-up (:func:`spinup_critical`).  Transient checks:
+the rotor kicked slightly from the scan's equilibrium at Lambda_c -/+ delta (one mu_C), and from the
+spin-up's equilibria (:func:`spinup_transient`).  See docs/analysis.md, "What sets Lambda_c".
 Writes ``results/friction_onset/summary.json`` and ``onset.png``.
 
     python -m gfb_experiments.friction_onset [--grid 21x5] [--transient-mu 0.12] [--delta 0.005]
@@ -220,13 +222,15 @@ def plot(rows: list[dict], path: Path) -> None:
     ax[0].axhline(0.574771, color="gray", lw=0.8, ls=":", label="free foil K_W")
     ax[0].legend(fontsize=7)
     ax[0].set_ylabel("Lambda_c")
-    ax[1].plot(mu, [r["n_stuck"] for r in rows], "s-", label="stuck columns (of 20)")
+    ax[1].plot(mu, [r["n_stuck"] for r in rows], "s-", label="stuck columns (of 20), default scan")
     ax[1].plot(mu, [r["n_stuck_fine_scan"] for r in rows], "x--", label=f"stuck, scan step {FINE_SCAN_STEP}")
-    ax[1].plot(mu, [r["n_stuck_loaded"] for r in rows], "^-", label="stuck, loaded (Pbar > 1)")
+    ax[1].plot(
+        mu, [r["n_stuck_loaded"] for r in rows], "^-", label="stuck and loaded (Pbar > 1), default scan"
+    )
     ax[1].plot(mu, [r["n_stuck_spinup"] for r in rows], "k^-", label="stuck, monotone spin-up")
     ax[1].legend(fontsize=7)
     ax[1].set_ylabel("columns")
-    ax[2].plot(mu, [r["k_eff_mean"] for r in rows], "o-", label="mean tangent stiffness")
+    ax[2].plot(mu, [r["k_eff_mean"] for r in rows], "o-", label="mean tangent stiffness, default scan")
     mm = np.linspace(0, 1 / 3, 50)
     ax[2].plot(mm, KW / (1 - mm), "--", label="K_W/(1-mu_C)")
     ax[2].legend()

@@ -32,7 +32,13 @@ from gfb_env.analysis.stability import critical_bearing_number, linear_stability
 from gfb_env.equilibrium import find_equilibrium  # noqa: E402
 from gfb_env.integrator import TrapezoidalIntegrator  # noqa: E402
 from gfb_env.model import GFBModel  # noqa: E402
-from gfb_env.scripting import OneLineParser, check_output_dir  # noqa: E402
+from gfb_env.scripting import (  # noqa: E402
+    OneLineParser,
+    check_output_dir,
+    grid_type,
+    non_negative,
+    positive,
+)
 
 KW, KT = 1.0, 0.5
 FINE_SCAN_STEP = 0.01  # the scan's load stages (critical_bearing_number's default is 0.05)
@@ -162,13 +168,16 @@ def spinup_transient(
 
 def main(argv: list[str] | None = None) -> int:
     ap = OneLineParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--grid", default="21x5")
-    ap.add_argument("--transient-mu", type=float, default=0.12)
-    ap.add_argument("--delta", type=float, default=0.005)
+    ap.add_argument("--grid", type=lambda x: str(grid_type(x)), default="21x5")
+    ap.add_argument("--transient-mu", type=non_negative("--transient-mu"), default=0.12)
+    ap.add_argument("--delta", type=positive("--delta"), default=0.005)
     ap.add_argument("--no-transient", action="store_true")
     ap.add_argument("--out", default="results/friction_onset")
     a = ap.parse_args(argv)
-    out = check_output_dir(a.out)
+    try:
+        out = check_output_dir(a.out)
+    except ValueError as exc:
+        ap.error(str(exc))
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     for mu in MUS:

@@ -60,3 +60,16 @@ def test_monotone_spinup_gives_a_definite_lambda_c_the_default_scan_does_not():
     assert abs(up[0.004][0] - up[0.002][0]) < 1e-4 and up[0.004][1] == up[0.002][1] == 7, up
     scan = critical_bearing_number(frictional(0.1)).critical_bearing_number
     assert up[0.002][0] - scan > 3e-3, (up, scan)
+
+
+def test_friction_onset_refuses_bad_input_before_any_work(tmp_path, capsys):
+    import pytest
+
+    from gfb_experiments.friction_onset import main
+
+    for argv in (["--grid", "foo"], ["--delta", "-1"], ["--transient-mu", "x"]):
+        with pytest.raises(SystemExit) as exc:
+            main([*argv, "--out", str(tmp_path / "o")])
+        assert exc.value.code == 2
+        assert len(capsys.readouterr().err.strip().splitlines()[-1]) > 0
+    assert not (tmp_path / "o").exists()

@@ -154,7 +154,7 @@ def _bench(tmp_path: Path, *extra: str) -> list[str]:
         (["--env-kwargs", json.dumps({ENV: {"bogus": 1}})], "unknown environment argument 'bogus'"),
         (["--out", PROC_OUT], f"--out {PROC_OUT}: cannot write"),
         # defect 8
-        (["--agents", "bogus"], "--agents: unknown agent 'bogus'; agents of the tasks: map_informed_v1"),
+        (["--agents", "bogus"], "unknown agent 'bogus'; agents of the tasks: hold, map_informed_v1"),
         (["--agents", "recovery"], "'recovery' plays none of the tasks gfb_env/RunUp-v1"),
         (["--agents", ""], "--agents names nothing"),
         (["--agents", "naive,,oracle_v1"], "--agents has an empty name"),

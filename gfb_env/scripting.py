@@ -41,6 +41,7 @@ from gfb_env.params import (
 )
 
 __all__ = [
+    "written_line",
     "MAX_DURATION",
     "MAX_SAMPLES",
     "add_bearing_option",
@@ -637,3 +638,10 @@ def check_perturbation(
         f"this direction the journal may move less than {t_max:.3g} from its equilibrium to keep the "
         f"film above --touchdown {touchdown:g}"
     )
+
+
+def written_line(written: str | None, wall_s: float | None = None) -> str:
+    """The commands' last line: ``wrote <written>`` or, for a run without ``--out``, ``no files written
+    (--out DIR)``; with ``wall_s``, `` (<wall_s> s)`` after it."""
+    line = f"wrote {written}" if written else "no files written (--out DIR)"
+    return line if wall_s is None else f"{line} ({wall_s:.1f} s)"

@@ -22,6 +22,7 @@ from gfb_env.scripting import (
     int_range,
     model_from_args,
     optional_output_dir,
+    written_line,
 )
 
 __all__ = ["cmd_campbell", "register"]
@@ -70,11 +71,7 @@ def cmd_campbell(args: argparse.Namespace) -> int:
                 f"{cd.onset_speed_rpm:.0f} rpm, whirl {d['onset_frequency_hz']:.1f} Hz "
                 f"({d['onset_whirl_frequency_ratio']:.3f} x)"
             )
-        print(
-            f"  wrote {', '.join(d['files'].values())} ({wall:.1f} s)"
-            if out
-            else f"  no files written (--out DIR) ({wall:.1f} s)"
-        )
+        print("  " + written_line(out and ", ".join(d["files"].values()), wall))
     return 0
 
 

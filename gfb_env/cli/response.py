@@ -25,6 +25,7 @@ from gfb_env.scripting import (
     optional_output_dir,
     positive,
     unbalance_from_args,
+    written_line,
 )
 
 __all__ = ["register", "cmd_response"]
@@ -130,11 +131,7 @@ def cmd_response(args: argparse.Namespace) -> int:
                 f"  transient check: xi error {verify['xi_relative_error']:.2%}, eta error "
                 f"{verify['eta_relative_error']:.2%}"
             )
-        print(
-            f"  wrote {', '.join(d['files'].values())} ({wall:.1f} s)"
-            if out
-            else f"  no files written (--out DIR) ({wall:.1f} s)"
-        )
+        print("  " + written_line(out and ", ".join(d["files"].values()), wall))
     return 0
 
 

@@ -26,6 +26,7 @@ from gfb_env.scripting import (
     optional_output_dir,
     positive,
     unbalance_from_args,
+    written_line,
 )
 
 __all__ = ["check_runup_args", "cmd_runup", "register"]
@@ -205,11 +206,7 @@ def cmd_runup(args: argparse.Namespace) -> int:
                 f"{d['top_speed_1x_eta_um']:.3g} um; largest 1x {d['max_1x_amplitude_um']:.3g} um at "
                 f"{d['max_1x_speed_rpm']:.0f} rpm"
             )
-        print(
-            f"  wrote {out}/ ({d['wall_time_s']:.1f} s)"
-            if out
-            else f"  no files written (--out DIR) ({d['wall_time_s']:.1f} s)"
-        )
+        print("  " + written_line(out and f"{out}/", d["wall_time_s"]))
     return 0 if ru.ok else 1
 
 

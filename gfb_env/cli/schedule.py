@@ -24,6 +24,7 @@ from gfb_env.scripting import (
     optional_output_dir,
     positive,
     unbalance_from_args,
+    written_line,
 )
 
 __all__ = ["register", "cmd_schedule", "WHIRL_THRESHOLD"]
@@ -256,9 +257,5 @@ def cmd_schedule(args: argparse.Namespace) -> int:
             )
         for n in sch.notes:
             print(f"  note: {n}")
-        print(
-            f"  wrote {out}/ ({d['wall_time_s']:.1f} s)"
-            if out
-            else f"  no files written (--out DIR) ({d['wall_time_s']:.1f} s)"
-        )
+        print("  " + written_line(out and f"{out}/", d["wall_time_s"]))
     return 0 if verified_stable else 1

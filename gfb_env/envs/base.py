@@ -378,12 +378,7 @@ class GFBEnv(gym.Env):
             "eta": float(eta),
             "xi_dot": float(xi_dot),
             "eta_dot": float(eta_dot),
-            "xi_um": b.micrometres(xi),
-            "eta_um": b.micrometres(eta),
-            "xi_dot_m_s": b.micrometres(xi_dot) * 1e-6 / b.time_scale_s,
-            "eta_dot_m_s": b.micrometres(eta_dot) * 1e-6 / b.time_scale_s,
-            "eccentricity": eps,
-            "eccentricity_um": b.micrometres(eps),
+            **_journal_physical(b, xi, eta, xi_dot, eta_dot, eps),
             "bearing_number": integ.bearing_number,
             "foil_damping": integ.foil_damping,
             "whirl_amplitude": ep.whirl_amplitude,
@@ -802,12 +797,7 @@ class GFBEnv(gym.Env):
             "probe_x_um": float(ep.probe_readings_um[0]),
             "probe_y_um": float(ep.probe_readings_um[1]),
             "speed_rpm": b.speed_rpm_at(lam),
-            "xi_um": b.micrometres(xi),
-            "eta_um": b.micrometres(eta),
-            "xi_dot_m_s": b.micrometres(xi_dot) * 1e-6 / b.time_scale_s,
-            "eta_dot_m_s": b.micrometres(eta_dot) * 1e-6 / b.time_scale_s,
-            "eccentricity": eps,
-            "eccentricity_um": b.micrometres(eps),
+            **_journal_physical(b, xi, eta, xi_dot, eta_dot, eps),
             "min_film_thickness": ep.min_film_thickness,
             "min_film_thickness_um": b.micrometres(ep.min_film_thickness),
             "whirl_amplitude": ep.whirl_amplitude,
@@ -889,6 +879,21 @@ class GFBEnv(gym.Env):
 #: NumPy dtype kinds an action may have: bool, signed and unsigned integers, floats (not complex, not
 #: strings or objects: the imaginary part would be dropped silently, a string is no number)
 _REAL_KINDS = "biuf"
+
+
+def _journal_physical(
+    b: BearingParameters, xi: float, eta: float, xi_dot: float, eta_dot: float, eps: float
+) -> dict:
+    """The true journal state in physical units (``xi_um``, ``eta_um``, ``xi_dot_m_s``, ``eta_dot_m_s``,
+    ``eccentricity``, ``eccentricity_um``): one owner for v1's ``info`` and the privileged quantities."""
+    return {
+        "xi_um": b.micrometres(xi),
+        "eta_um": b.micrometres(eta),
+        "xi_dot_m_s": b.micrometres(xi_dot) * 1e-6 / b.time_scale_s,
+        "eta_dot_m_s": b.micrometres(eta_dot) * 1e-6 / b.time_scale_s,
+        "eccentricity": eps,
+        "eccentricity_um": b.micrometres(eps),
+    }
 
 
 def _clip_action(x: float) -> float:

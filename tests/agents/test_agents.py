@@ -334,7 +334,7 @@ def test_train_cli_trains_several_seeds_and_the_ladder_registers_them(tmp_path):
     bench += ["--env-kwargs", json.dumps({env_id: {"max_episode_steps": 6}})]
     assert bench_main(bench) == 0
     rows = {r["agent"]: r for r in csv.DictReader((tmp_path / "bench" / "benchmark_agents.csv").open())}
-    assert set(rows) == {"naive", "oracle_v1", "exp"}
+    assert set(rows) == {"naive", "hold", "oracle_v1", "exp"}
     assert rows["exp"]["kind"] == "learned" and rows["exp"]["training_seeds"] == "2"
     meta = json.loads((tmp_path / "bench" / "benchmark_agents.json").read_text())
     learned = meta["tasks"][env_id]["agents"]["exp"]
@@ -405,28 +405,31 @@ def test_benchmark_quick_writes_table_and_resumes_from_its_cache(tmp_path, capsy
         "mean_damping_change",
     }
     assert required <= set(rows[0]) and set(COLUMNS) == set(rows[0])
-    # naive and oracle always run: they define the normalised score
+    # naive, hold and oracle always run: they define the normalised score
     assert {(r["task"], r["agent"]) for r in rows} == {
-        ("gfb_env/RunUp-v1", a) for a in ("naive", "map_informed_v1", "margin_search", "oracle_v1")
-    } | {("gfb_env/WhirlRecovery-v1", a) for a in ("naive", "map_informed_v1", "oracle_v1")}
+        ("gfb_env/RunUp-v1", a) for a in ("naive", "hold", "map_informed_v1", "margin_search", "oracle_v1")
+    } | {("gfb_env/WhirlRecovery-v1", a) for a in ("naive", "hold", "map_informed_v1", "oracle_v1")}
     assert {r["kind"] for r in rows} == {"naive", "rule", "oracle"}
     assert all(r["episodes"] == "2" and r["split"] == "test" for r in rows)
-    for r in rows:
-        if r["kind"] == "naive" and r["normalized_iqm"] != "":
+    for r in rows:  # the zero reference of each aggregate (naive or hold) is at exactly 0 on its scale
+        assert r["reference"] in ("naive", "hold") and r["reference_mean"] in ("naive", "hold")
+        if r["agent"] == r["reference"] and r["normalized_iqm"] != "":
             assert float(r["normalized_iqm"]) == pytest.approx(0.0, abs=1e-12)
+        if r["agent"] == r["reference_mean"] and r["normalized_score"] != "":
+            assert float(r["normalized_score"]) == pytest.approx(0.0, abs=1e-12)
     assert "| task | agent |" in (tmp_path / "benchmark_agents.md").read_text()
     assert (tmp_path / "benchmark_agents_paths.png").stat().st_size > 10_000
     meta = json.loads((tmp_path / "benchmark_agents.json").read_text())
     assert meta["split"] == "test" and len(meta["rows"]) == len(rows)
-    want = {"naive", "map_informed_v1", "margin_search", "oracle_v1"}
+    want = {"naive", "hold", "map_informed_v1", "margin_search", "oracle_v1"}
     assert set(meta["tasks"]["gfb_env/RunUp-v1"]["agents"]) == want
     cache = sorted((tmp_path / CACHE_DIR).rglob("*.json"))
-    assert len(cache) == 2 * (4 + 3)  # one-seed chunks x (agents of RunUp-v1 + of WhirlRecovery-v1)
+    assert len(cache) == 2 * (5 + 4)  # one-seed chunks x (agents of RunUp-v1 + of WhirlRecovery-v1)
     # a rerun plays nothing; a lost chunk (or one with another key) is played again
     capsys.readouterr()
     cache[0].unlink()
     assert main(args + ["--agents", agents, "--reps", "200"]) == 0
-    assert "(13 cached" in capsys.readouterr().err
+    assert "(17 cached" in capsys.readouterr().err
     again = list(csv.DictReader((tmp_path / "benchmark_agents.csv").open()))
     assert [r["mean_return"] for r in again] == [r["mean_return"] for r in rows]
     # --merge replaces the rows of the agents it re-runs and keeps the others

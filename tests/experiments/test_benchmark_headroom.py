@@ -6,9 +6,11 @@ import csv
 import numpy as np
 import pytest
 
-from gfb_experiments.benchmark_agents import HEADROOM_COLUMNS
+from gfb_experiments.benchmark_agents import HEADROOM_COLUMNS, HEADROOM_EXTRA_COLUMNS
 from gfb_experiments.benchmark_headroom import headroom_from_table, main
 from gfb_experiments.benchmark_stats import paired_headroom
+
+_NO_REF = {"reference": None, "reference_mean": None}  # the synthetic table records no zero reference
 
 
 def _table(rng):
@@ -39,7 +41,8 @@ def test_the_best_rule_and_the_paired_headroom(rng):
     table, oracle, good = _table(rng)
     h = headroom_from_table(table, reps=2000)["T"]["headroom"]
     assert h["best_rule"] == "good"  # the best RULE: the learned agent does not count
-    assert h == {"best_rule": "good", "split": "test", **paired_headroom([oracle], [good], reps=2000)}
+    ph = paired_headroom([oracle], [good], reps=2000)
+    assert h == {"best_rule": "good", "split": "test", **_NO_REF, **ph, "established": True}
     assert h["iqm_low"] < 0.3 < h["iqm_high"] and h["mean_low"] < 0.3 < h["mean_high"]
 
 
@@ -52,8 +55,9 @@ def test_the_command_writes_the_csv(tmp_path, rng, capsys):
     assert main([str(p), "--reps", "500"]) == 0
     with (tmp_path / "benchmark_headroom.csv").open() as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == HEADROOM_COLUMNS and rows[1][:3] == ["T", "good", "40"]
-    assert np.isfinite([float(x) for x in rows[1][3:]]).all()
+    assert rows[0] == HEADROOM_COLUMNS + HEADROOM_EXTRA_COLUMNS and rows[1][:3] == ["T", "good", "40"]
+    assert np.isfinite([float(x) for x in rows[1][3:9]]).all()
+    assert rows[1][9:] == ["test", "", "", "True"]  # split, references (not in this table), the claim
     assert "headroom >= 0.2: holds" in capsys.readouterr().out
 
 
@@ -85,5 +89,7 @@ def test_merge_keeps_the_old_agents_scores_and_recomputes_the_headroom(rng):
     assert merged["T"]["headroom"] == {
         "best_rule": "good",
         "split": "test",
+        **_NO_REF,
         **paired_headroom([oracle], [good], reps=500),
+        "established": True,
     }

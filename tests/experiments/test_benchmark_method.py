@@ -341,7 +341,8 @@ def test_chunks_on_a_dask_cluster_equal_the_local_run_and_are_cached(tmp_path):
     kw = {"gfb_env/RunUp-v1": {"max_episode_steps": 4}}
     with ladder.scoped():
         chunks = plan(["gfb_env/RunUp-v1"], "validation", 2, 1, {"naive"}, kw)
-    assert {c.entry.name for c in chunks} == {"naive", "oracle_v1"} and len(chunks) == 4
+    # naive, hold and oracle always play (they define the normalisation's zero and one)
+    assert {c.entry.name for c in chunks} == {"naive", "hold", "oracle_v1"} and len(chunks) == 6
     assert all(s in seeds.VALIDATION for c in chunks for s in c.seeds)
     local = run_chunks(chunks, tmp_path / "local", progress=False)
     with distributed.LocalCluster(
@@ -352,4 +353,4 @@ def test_chunks_on_a_dask_cluster_equal_the_local_run_and_are_cached(tmp_path):
         a = [e["episode_return"] for e in local[c]["episodes"]]
         b = [e["episode_return"] for e in remote[c]["episodes"]]
         assert a == b and len(a) == 1
-    assert len(list((tmp_path / "dask").rglob("run0_*.json"))) == 4
+    assert len(list((tmp_path / "dask").rglob("run0_*.json"))) == 6

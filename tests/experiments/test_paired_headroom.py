@@ -77,7 +77,7 @@ def test_iqm_normalisation_puts_naive_and_oracle_iqms_at_0_and_1():
     s_n, info = normalized_scores(naive, naive, oracle, reference="iqm")
     s_o, _ = normalized_scores(oracle, naive, oracle, reference="iqm")
     assert iqm(s_n) == pytest.approx(0.0, abs=1e-12) and iqm(s_o) == pytest.approx(1.0)
-    assert info["reference"] == "iqm" and info["reference_gap"] == pytest.approx(iqm(oracle) - iqm(naive))
+    assert info["statistic"] == "iqm" and info["reference_gap"] == pytest.approx(iqm(oracle) - iqm(naive))
     m_n, minfo = normalized_scores(naive, naive, oracle)  # the default stays the means
     assert np.mean(m_n) == pytest.approx(0.0, abs=1e-12) and minfo["reference_gap"] == minfo["mean_gap"]
     assert abs(iqm(m_n)) > 0.1  # the inconsistency the option removes
@@ -91,7 +91,7 @@ def test_benchmark_writes_the_headroom_csv_with_paired_cis(tmp_path, capsys):
     import csv
     import json
 
-    from gfb_experiments.benchmark_agents import HEADROOM_COLUMNS, main
+    from gfb_experiments.benchmark_agents import HEADROOM_COLUMNS, HEADROOM_EXTRA_COLUMNS, main
 
     task = "gfb_env/RunUp-v1"
     args = ["--quick", "--split", "validation", "--out", str(tmp_path), "--no-learned", "--tasks", task]
@@ -101,12 +101,14 @@ def test_benchmark_writes_the_headroom_csv_with_paired_cis(tmp_path, capsys):
     assert not (tmp_path / "benchmark_headroom.csv").exists()  # not the test split: not the table's name
     with (tmp_path / "benchmark_headroom_validation.csv").open() as fh:
         reader = csv.DictReader(fh)
-        assert reader.fieldnames == HEADROOM_COLUMNS
+        assert reader.fieldnames == HEADROOM_COLUMNS + HEADROOM_EXTRA_COLUMNS  # the 9 first
         rows = list(reader)
     assert len(rows) == 1 and rows[0]["task"] == task and rows[0]["best_rule"] == "map_informed_v1"
     assert rows[0]["test_seeds"] == "2"
     meta = json.loads((tmp_path / "benchmark_agents.json").read_text())
-    assert meta["normalise"] == "iqm" and meta["tasks"][task]["reference"] == "iqm"
+    assert meta["normalise"] == "iqm" and meta["tasks"][task]["scales"]["iqm"]["statistic"] == "iqm"
+    assert meta["tasks"][task]["scales"]["mean"]["statistic"] == "iqm"  # --normalise iqm: both by IQMs
+    assert meta["tasks"][task]["reference"] in ("naive", "hold")
     ag = meta["tasks"][task]["agents"]
     assert len(ag["map_informed_v1"]["returns"][0]) == 2 and len(ag["map_informed_v1"]["seeds"]) == 2
     h = paired_headroom(ag["oracle_v1"]["normalized"], ag["map_informed_v1"]["normalized"], reps=200)

@@ -236,6 +236,7 @@ def test_a_task_without_learned_policies_is_played_without_them_and_the_table_sa
 
 def test_the_chunk_cache_resumes_a_200_seed_run_after_an_interruption(tmp_path, monkeypatch):
     chunks = bench.plan([TASK], "test", 200, 10, {"naive"})
+    assert {c.entry.name for c in chunks} == {"naive", "hold", "oracle_v1"}  # the scale's agents always
     per_agent = [c for c in chunks if c.entry.name == "naive"]
     assert len(per_agent) == 20 and [s for c in per_agent for s in c.seeds] == seeds.split_seeds("test", 200)
     # extending a 100-seed run to 200 reuses its chunks (same keys)
@@ -280,3 +281,29 @@ def test_the_paths_figure_draws_each_tasks_own_band(tmp_path, monkeypatch):
     assert any(f.startswith("hysteresis band") for f in fills) and "31x7" in titles[0]
     with pytest.raises(ValueError, match="no plant band for gfb_env/WhirlRecovery-v1"):
         bench.plot_paths(paths, {TASK: band}, tmp_path / "q.png", [TASK, "gfb_env/WhirlRecovery-v1"])
+
+
+def test_a_run_on_a_task_without_policies_plays_the_ladder_and_notes_it(tmp_path, capsys):
+    """End to end: the policies folder holds only RunUp-v1's; a WhirlRecovery-v1 run is not refused,
+    plays naive, hold, its rules and the oracle, and its table and JSON say the learned agents were
+    skipped."""
+    import json
+    import shutil
+
+    from gfb_agents.learned.evaluate import POLICIES_DIR
+
+    pol = tmp_path / "policies"
+    shutil.copytree(POLICIES_DIR / "RunUp-v1_recurrentppo", pol / "RunUp-v1_recurrentppo")
+    task = "gfb_env/WhirlRecovery-v1"
+    out = tmp_path / "out"
+    args = ["--quick", "--tasks", task, "--policies", str(pol), "--out", str(out), "--reps", "100"]
+    args += ["--env-kwargs", json.dumps({task: {"max_episode_steps": 2}})]
+    assert bench.main(args) == 0
+    note = "no learned policy is committed for WhirlRecovery-v1: learned agents skipped on it"
+    assert f"note: {note}" in capsys.readouterr().err
+    assert f"Note: {note}" in (out / "benchmark_agents.md").read_text()
+    meta = json.loads((out / "benchmark_agents.json").read_text())
+    assert meta["notes"] == [note]
+    kinds = {r["agent"]: r["kind"] for r in meta["rows"]}
+    assert {"naive", "hold", "oracle_v1"} <= set(kinds) and "learned" not in kinds.values()
+    assert all(r["split"] == "test" for r in meta["rows"])

@@ -365,7 +365,7 @@ def performance_profile_png(
         taus,
         performance_profile_cis=cis,
         ax=ax,
-        xlabel=r"normalised score $\tau$ (0 = naive, 1 = oracle)",
+        xlabel=r"normalised score $\tau$ (IQM scale: 0 = the zero reference, naive or hold; 1 = oracle)",
         ylabel=r"fraction of episodes with score $> \tau$",
         labelsize="medium",
         ticklabelsize="small",

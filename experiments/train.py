@@ -1,10 +1,14 @@
 """Train Stable-Baselines3 agents on a gfb_env task: the command line of :mod:`gfb_agents.learned.train`.
 
-    python -m gfb_experiments.train --algo {ppo,sac,recurrentppo} --env gfb_env/RunUpRandomized-v1
+    python -m gfb_experiments.train --algo {ppo,sac,recurrentppo,asymmetric_ppo}
+        --env gfb_env/RunUpRandomized-v1
         [--seeds 0-4 | --seed R] [--timesteps N] [--n-jobs K | --scheduler ADDRESS] [--out DIR]
         [--n-envs K] [--frame-stack K] [--hyperparams FILE] [--env-kwargs JSON] [--eval-freq N]
         [--eval-episodes N] [--checkpoint-freq N] [--keep-checkpoints N] [--no-progress-bar]
-        [--vec-env {dummy,subproc,native}]
+        [--vec-env {dummy,subproc,native}] [--privileged-quantities NAME,...]
+
+``asymmetric_ppo``: PPO whose critic also sees the episode's privileged vector (training only; the actor,
+the deployed policy, sees the observation): :mod:`gfb_agents.learned.asymmetric`.
 
 What a run writes, how it resumes, seeds and model selection: the docstring of
 :mod:`gfb_agents.learned.train`.  Every bad argument is refused before any run starts (one line, exit 2).
@@ -101,6 +105,12 @@ def main(argv: list[str] | None = None) -> int:
         help="training envs in this process (dummy), one worker process each (subproc), or the task's "
         "native vector env (native)",
     )
+    ap.add_argument(
+        "--privileged-quantities",
+        default=None,
+        help="asymmetric_ppo: true step quantities appended to the critic's privileged vector, e.g. "
+        "whirl_amplitude,min_film_thickness (gfb_agents.learned.privileged.STEP_QUANTITIES)",
+    )
     a = ap.parse_args(argv)
     set_thread_defaults()  # single-threaded BLAS in the subproc workers (see gfb_env._threads)
     env_kwargs = None
@@ -148,6 +158,7 @@ def main(argv: list[str] | None = None) -> int:
             verbose=a.verbose,
             torch_threads=a.torch_threads,
             vec_env=a.vec_env,
+            privileged_quantities=tuple(q for q in (a.privileged_quantities or "").split(",") if q),
         )
         check_runs(config, run_seeds, a.scheduler)  # everything a run would fail on, before any starts
         recs = train_seeds(

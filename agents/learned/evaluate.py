@@ -40,16 +40,25 @@ __all__ = [
     "run_env_id",
     "POLICIES_DIR",
     "LEARNED_ALGOS",
+    "ACTOR_ONLY_ALGOS",
     "algo_class",
 ]
 
 
 #: algorithms a learned policy may come from (``gfb_agents.learned.train --algo``)
-LEARNED_ALGOS = ("ppo", "sac", "recurrentppo")
+LEARNED_ALGOS = ("ppo", "sac", "recurrentppo", "asymmetric_ppo")
+#: algorithms trained with the privileged vector (:mod:`gfb_agents.learned.privileged`) beside the
+#: observation: their deployed policy is the actor alone
+#: (:class:`~gfb_agents.learned.asymmetric.DeployedActor`), which takes the public observation only
+ACTOR_ONLY_ALGOS = ("asymmetric_ppo",)
 
 
 def algo_class(algo: str):
     """The SB3 / sb3-contrib class of ``algo`` (one of :data:`LEARNED_ALGOS`)."""
+    if algo == "asymmetric_ppo":
+        from stable_baselines3 import PPO
+
+        return PPO
     if algo == "recurrentppo":
         from sb3_contrib import RecurrentPPO
 
@@ -61,12 +70,47 @@ def algo_class(algo: str):
     return {"ppo": PPO, "sac": SAC}[algo]
 
 
+def _model_file(d: Path) -> Path | None:
+    """``d/model.zip`` (an SB3 model), else ``d/actor.pt`` (a deployed actor alone), else None."""
+    from gfb_agents.learned.asymmetric import ACTOR_FILE
+
+    for name in ("model.zip", ACTOR_FILE):
+        if (d / name).exists():
+            return d / name
+    return None
+
+
+def _obs_statistics(vn) -> tuple[np.ndarray, np.ndarray] | None:
+    """The observation's running mean and variance of a ``VecNormalize`` (its ``"obs"`` entry where the
+    training observation was the privileged ``Dict``), None if it did not normalise observations."""
+    if not vn.norm_obs:
+        return None
+    rms = vn.obs_rms
+    if isinstance(rms, dict):
+        from gfb_agents.learned.privileged import OBS_KEY
+
+        rms = rms[OBS_KEY]
+    return np.array(rms.mean, dtype=np.float64), np.array(rms.var, dtype=np.float64)
+
+
 def _find_meta(*dirs: Path) -> dict:
     for d in dirs:
         for mp in (d / "run.json", d / "policy.json"):
             if mp.exists():
                 return json.loads(mp.read_text())
     return {}
+
+
+def _load_model(path: Path, algo: str):
+    """What :class:`LearnedPolicy` calls: the SB3 model of ``path``, or for :data:`ACTOR_ONLY_ALGOS` the
+    deployed actor alone (from ``actor.pt``, or taken out of the SB3 model of a training run)."""
+    if algo in ACTOR_ONLY_ALGOS:
+        from gfb_agents.learned.asymmetric import ACTOR_FILE, DeployedActor
+
+        if path.name == ACTOR_FILE:
+            return DeployedActor.load(path)
+        return DeployedActor.from_policy(algo_class(algo).load(str(path), device="cpu").policy)
+    return algo_class(algo).load(str(path), device="cpu")
 
 
 class LearnedPolicy(Policy):
@@ -90,10 +134,10 @@ class LearnedPolicy(Policy):
         if which not in ("best", "final"):
             raise ValueError(f"which must be 'best' or 'final', got {which!r}")
         p = Path(path)
-        if p.is_dir() and which == "best" and (p / "best" / "model.zip").exists():
-            zip_path = p / "best" / "model.zip"
+        if p.is_dir() and which == "best" and _model_file(p / "best") is not None:
+            zip_path = _model_file(p / "best")
         else:
-            zip_path = p / "model.zip" if p.is_dir() else p
+            zip_path = (_model_file(p) or p / "model.zip") if p.is_dir() else p
         d = zip_path.parent
         if not zip_path.exists():
             raise FileNotFoundError(f"no model at {zip_path}")
@@ -106,7 +150,7 @@ class LearnedPolicy(Policy):
         self.env_id: str | None = meta.get("env_id")
         self.frame_stack = int(meta.get("frame_stack", 1) or 1)
         self.recurrent = algo == "recurrentppo"
-        self.model = algo_class(algo).load(str(zip_path), device="cpu")
+        self.model = _load_model(zip_path, algo)
         self.model_path = zip_path
         # the frozen observation statistics only (the unpickled VecNormalize has no venv and cannot be
         # pickled again, e.g. to a joblib worker)
@@ -116,8 +160,9 @@ class LearnedPolicy(Policy):
         if vn.exists():
             with open(vn, "rb") as fh:
                 v = pickle.load(fh)
-            if v.norm_obs:
-                self.obs_mean, self.obs_var = np.asarray(v.obs_rms.mean), np.asarray(v.obs_rms.var)
+            stats = _obs_statistics(v)
+            if stats is not None:
+                self.obs_mean, self.obs_var = stats
                 self.epsilon, self.clip_obs = float(v.epsilon), float(v.clip_obs)
         self._args = (str(path), algo, name, which)
         self.name = name or (p.name if p.is_dir() else zip_path.stem)
@@ -131,14 +176,18 @@ class LearnedPolicy(Policy):
         observation statistics of ``vec_normalize`` are copied (frozen), nothing is read from disk.
         Not picklable (use the saved files for that)."""
         self = cls.__new__(cls)
+        if algo in ACTOR_ONLY_ALGOS:
+            from gfb_agents.learned.asymmetric import DeployedActor
+
+            model = DeployedActor.from_policy(model.policy)  # a copy of the actor now: the snapshot
         self.model, self.algo, self.name, self.meta = model, algo, name, {}
         self.model_path = None
         self.env_id, self.frame_stack, self.recurrent = None, int(frame_stack), algo == "recurrentppo"
         self.obs_mean = self.obs_var = None
         self.epsilon, self.clip_obs = 1e-8, 10.0
-        if vec_normalize is not None and vec_normalize.norm_obs:
-            self.obs_mean = np.array(vec_normalize.obs_rms.mean, dtype=np.float64)
-            self.obs_var = np.array(vec_normalize.obs_rms.var, dtype=np.float64)
+        stats = None if vec_normalize is None else _obs_statistics(vec_normalize)
+        if stats is not None:
+            self.obs_mean, self.obs_var = stats
             self.epsilon, self.clip_obs = float(vec_normalize.epsilon), float(vec_normalize.clip_obs)
         self._args = None
         self._stack = None
@@ -198,15 +247,16 @@ class LearnedPolicy(Policy):
 
 def run_dirs(agent_dir: str | Path) -> list[Path]:
     """The model directories of one learned agent's folder, sorted: the folder itself (``model.zip``) or
-    its ``seed*/`` / ``run*/`` subfolders with a model (``model.zip`` or ``best/model.zip``), one per
+    its ``seed*/`` / ``run*/`` subfolders with a model (``model.zip`` or ``best/model.zip``; ``actor.pt``,
+    a deployed actor alone, counts as a model), one per
     independent training seed (as ``gfb_agents.learned.train --seeds`` and ``export_policy`` write them)."""
     d = Path(agent_dir)
-    if (d / "model.zip").exists():
+    if _model_file(d) is not None:
         return [d]
     return [
         s
         for s in sorted(d.iterdir())
-        if s.is_dir() and ((s / "model.zip").exists() or (s / "best" / "model.zip").exists())
+        if s.is_dir() and (_model_file(s) is not None or _model_file(s / "best") is not None)
     ]
 
 

@@ -46,16 +46,19 @@ __all__ = [
 
 
 #: algorithms a learned policy may come from (``gfb_agents.learned.train --algo``)
-LEARNED_ALGOS = ("ppo", "sac", "recurrentppo", "asymmetric_ppo")
+LEARNED_ALGOS = ("ppo", "sac", "recurrentppo", "asymmetric_ppo", "teacher_student")
 #: algorithms trained with the privileged vector (:mod:`gfb_agents.learned.privileged`) beside the
 #: observation: their deployed policy is the actor alone
 #: (:class:`~gfb_agents.learned.asymmetric.DeployedActor`), which takes the public observation only
-ACTOR_ONLY_ALGOS = ("asymmetric_ppo",)
+ACTOR_ONLY_ALGOS = ("asymmetric_ppo", "teacher_student")
+#: the teacher of the teacher-student scheme (:mod:`gfb_agents.learned.teacher_student`): its actor reads
+#: the privileged vector, so it is no deployable policy
+TEACHER_ALGO = "privileged_ppo"
 
 
 def algo_class(algo: str):
     """The SB3 / sb3-contrib class of ``algo`` (one of :data:`LEARNED_ALGOS`)."""
-    if algo == "asymmetric_ppo":
+    if algo in ("asymmetric_ppo", TEACHER_ALGO):
         from stable_baselines3 import PPO
 
         return PPO
@@ -144,6 +147,11 @@ class LearnedPolicy(Policy):
         meta = _find_meta(d, d.parent) if d.name == "best" else _find_meta(d)
         self.meta = meta
         algo = (algo or meta.get("algo") or "").lower()
+        if algo == TEACHER_ALGO:
+            raise ValueError(
+                f"{zip_path}: a {TEACHER_ALGO} teacher reads the privileged vector, it is not a deployable "
+                "policy (distil its student: --algo teacher_student --teacher RUN)"
+            )
         if algo not in LEARNED_ALGOS:
             raise ValueError(f"cannot tell the algorithm of {zip_path}; pass algo= one of {LEARNED_ALGOS}")
         self.algo = algo
@@ -191,6 +199,20 @@ class LearnedPolicy(Policy):
             self.epsilon, self.clip_obs = float(vec_normalize.epsilon), float(vec_normalize.clip_obs)
         self._args = None
         self._stack = None
+        return self
+
+    @classmethod
+    def from_actor(
+        cls, actor, vec_normalize_path: str | Path | None, frame_stack: int, algo: str = "teacher_student"
+    ) -> LearnedPolicy:
+        """A policy of an in-memory :class:`~gfb_agents.learned.asymmetric.DeployedActor` (a student's
+        validation) with the observation statistics of a saved ``vecnormalize.pkl``.  Not picklable."""
+        vn = None
+        if vec_normalize_path is not None and Path(vec_normalize_path).exists():
+            with open(vec_normalize_path, "rb") as fh:
+                vn = pickle.load(fh)
+        self = cls.from_model(None, algo="", vec_normalize=vn, frame_stack=frame_stack, name="validation")
+        self.model, self.algo = actor, algo
         return self
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:

@@ -21,7 +21,7 @@ import json
 import shutil
 from pathlib import Path
 
-from gfb_agents.learned.evaluate import ACTOR_ONLY_ALGOS, POLICIES_DIR, algo_class
+from gfb_agents.learned.evaluate import ACTOR_ONLY_ALGOS, POLICIES_DIR, TEACHER_ALGO, algo_class
 from gfb_env import jsonio
 
 __all__ = ["export_policy"]
@@ -52,6 +52,11 @@ _KEYS = (
 
 
 def _sources(run: Path, which: str) -> tuple[Path, Path]:
+    from gfb_agents.learned.asymmetric import ACTOR_FILE
+
+    if (run / ACTOR_FILE).exists():  # a distilled student: the actor alone already
+        d = run / "best" if which == "best" and (run / "best" / ACTOR_FILE).exists() else run
+        return d / ACTOR_FILE, d / "vecnormalize.pkl"
     if which == "final":
         return run / "model.zip", run / "vecnormalize.pkl"
     if (run / "best" / "model.zip").exists():
@@ -62,13 +67,20 @@ def _sources(run: Path, which: str) -> tuple[Path, Path]:
 
 def _export_run(run: Path, dest: Path, name: str, which: str) -> Path:
     meta = json.loads((run / "run.json").read_text())
+    if meta.get("algo") == TEACHER_ALGO:
+        raise ValueError(
+            f"{run}: a {TEACHER_ALGO} teacher reads the privileged vector and is not exported; export its "
+            "distilled student (--algo teacher_student)"
+        )
     src_model, src_vn = _sources(run, which)
     if not src_model.exists():
         raise FileNotFoundError(f"no {src_model}")
     dest.mkdir(parents=True, exist_ok=True)
-    if meta["algo"] in ACTOR_ONLY_ALGOS:
-        from gfb_agents.learned.asymmetric import ACTOR_FILE, DeployedActor
+    from gfb_agents.learned.asymmetric import ACTOR_FILE, DeployedActor
 
+    if src_model.name == ACTOR_FILE:
+        shutil.copy2(src_model, dest / ACTOR_FILE)
+    elif meta["algo"] in ACTOR_ONLY_ALGOS:
         # the actor alone: what the deployed policy runs (the critic read the privileged vector)
         policy = algo_class(meta["algo"]).load(str(src_model), device="cpu").policy
         DeployedActor.from_policy(policy).save(

@@ -63,7 +63,7 @@ import yaml
 
 from gfb_agents import HYPERPARAMS_DIR
 from gfb_agents import seeds as seeds_mod
-from gfb_agents.learned.evaluate import ACTOR_ONLY_ALGOS, algo_class
+from gfb_agents.learned.evaluate import TEACHER_ALGO, algo_class
 from gfb_agents.seeds import VALIDATION
 from gfb_env import jsonio
 from gfb_env._threads import set_thread_defaults
@@ -84,7 +84,10 @@ __all__ = [
     "plot_learning_curve",
 ]
 
-ALGOS = ("ppo", "sac", "recurrentppo", "asymmetric_ppo")
+ALGOS = ("ppo", "sac", "recurrentppo", "asymmetric_ppo", "privileged_ppo")
+#: the algorithms whose training observation holds the privileged vector (the asymmetric critic; the
+#: teacher of :mod:`gfb_agents.learned.teacher_student`, actor and critic)
+PRIVILEGED_INPUT_ALGOS = ("asymmetric_ppo", "privileged_ppo")
 #: the longest ``--frame-stack``: 64 control steps is a quarter of the longest episode (250 steps) and
 #: more history than identifying the bearing needs (the rules use a few steps); the memory grows as
 #: ``n_steps * n_envs * k * obs_dim * 4`` bytes in PPO's rollout buffer (6.9 GiB at k = 100 000, 4.7 MB
@@ -429,10 +432,18 @@ class _Session:
         from gfb_agents.learned.evaluate import LearnedPolicy, evaluate
 
         t = time.perf_counter()
-        pol = LearnedPolicy.from_model(
-            model, self.c.algo, model.get_vec_normalize_env(), self.c.frame_stack, name="validation"
-        )
-        res = evaluate(self.c.env_id, pol, self.validation["seeds"], env_kwargs=self.c.env_kwargs)
+        env_kwargs = self.c.env_kwargs
+        if self.c.algo == TEACHER_ALGO:
+            # the teacher acts on the privileged vector: handed the hidden draws by the opt-in channel
+            from gfb_agents.learned.teacher_student import TeacherPolicy
+
+            pol = TeacherPolicy(model, model.get_vec_normalize_env(), self.c.frame_stack, name="validation")
+            env_kwargs = {**env_kwargs, "privileged_info": True}
+        else:
+            pol = LearnedPolicy.from_model(
+                model, self.c.algo, model.get_vec_normalize_env(), self.c.frame_stack, name="validation"
+            )
+        res = evaluate(self.c.env_id, pol, self.validation["seeds"], env_kwargs=env_kwargs)
         rets = np.array([r.episode_return for r in res])
         rec = {
             "timesteps": int(model.num_timesteps),
@@ -666,8 +677,9 @@ class TrainConfig:
         if isinstance(self.privileged_quantities, str):
             raise ValueError("privileged_quantities must be a sequence of names, not a string")
         object.__setattr__(self, "privileged_quantities", check_quantities(self.privileged_quantities))
-        if self.privileged_quantities and algo not in ACTOR_ONLY_ALGOS:
-            raise ValueError(f"privileged_quantities: only with {list(ACTOR_ONLY_ALGOS)}, not {algo}")
+        if self.privileged_quantities and algo != "asymmetric_ppo":
+            # the teacher's validation hands it the episode's draws only (TeacherPolicy)
+            raise ValueError(f"privileged_quantities: only with asymmetric_ppo, not {algo}")
         if self.env_kwargs is None:
             object.__setattr__(self, "env_kwargs", {})
         elif not isinstance(self.env_kwargs, dict):
@@ -831,9 +843,9 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
     env_seed = seeds_mod.train_env_seed(seed, 0, session)  # env i: env_seed + i (train_env_seed(seed, i))
     train_kwargs = {**env_kwargs, "privileged_info": True} if c.privileged_quantities else env_kwargs
     venv = make_vec_env_for(env_id, n_envs, env_seed, monitor_dir, train_kwargs, vec_env=c.vec_env)
-    if algo in ACTOR_ONLY_ALGOS:
-        # training only: the critic's privileged vector beside the observation (the validation env and
-        # the deployed actor get the plain observation)
+    if algo in PRIVILEGED_INPUT_ALGOS:
+        # training only: the privileged vector beside the observation (asymmetric_ppo: the critic's
+        # input; the validation env and the deployed actor get the plain observation)
         from gfb_agents.learned.privileged import PrivilegedVecEnv
 
         venv = PrivilegedVecEnv(venv, c.privileged_quantities)
@@ -926,7 +938,7 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
         "seed": seed,
         "n_envs": n_envs,
         "frame_stack": c.frame_stack,
-        **({"privileged": list(_privileged_names(c))} if algo in ACTOR_ONLY_ALGOS else {}),
+        **({"privileged": list(_privileged_names(c))} if algo in PRIVILEGED_INPUT_ALGOS else {}),
         "timesteps": steps,
         "total_timesteps": total,
         "requested_timesteps": requested,
@@ -971,6 +983,8 @@ def _policy_class(algo: str, zoo: dict[str, Any]):
         if name != "AsymmetricActorCriticPolicy":
             raise ValueError(f"asymmetric_ppo: policy must be 'AsymmetricActorCriticPolicy', got {name!r}")
         return AsymmetricActorCriticPolicy
+    if algo == TEACHER_ALGO and name != "MultiInputPolicy":
+        raise ValueError(f"{TEACHER_ALGO}: policy must be 'MultiInputPolicy', got {name!r}")
     return name
 
 

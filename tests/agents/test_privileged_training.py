@@ -218,7 +218,7 @@ def test_asymmetric_ppo_resumes_after_a_kill_to_exactly_its_total(tmp_path, monk
     "extra, fragment",
     [
         (["--privileged-quantities", "damping_gain"], "privileged quantities ['damping_gain'] unknown"),
-        (["--privileged-quantities", "whirl_amplitude", "--algo", "ppo"], "only with ['asymmetric_ppo']"),
+        (["--privileged-quantities", "whirl_amplitude", "--algo", "ppo"], "only with asymmetric_ppo"),
         (["--env-kwargs", '{"privileged_info": true}'], "privileged_info is set by the training command"),
         (["--policy", "MlpPolicy"], "policy must be 'AsymmetricActorCriticPolicy'"),
     ],
@@ -230,5 +230,130 @@ def test_bad_options_are_refused_with_one_line(tmp_path, capsys, extra, fragment
         extra = []
     argv = ["--algo", ALGO, "--env", ENV, "--timesteps", "16", "--hyperparams", str(yml)]
     argv += ["--out", str(tmp_path / "exp"), "--no-progress-bar", "--no-tensorboard", *extra]
+    _refused(train_main, argv, fragment, capsys, within_s=15.0)
+    assert not (tmp_path / "exp").exists()
+
+
+# ------------------------------------------------------------------ teacher-student (DAgger)
+@pytest.fixture(scope="module")
+def teacher_run(tmp_path_factory) -> Path:
+    """A tiny privileged_ppo teacher (64 steps, frame stack 2, 8-step episodes)."""
+    tmp = tmp_path_factory.mktemp("teacher")
+    hp = load_hyperparams("privileged_ppo", ENV)
+    hp.update(n_steps=16, batch_size=16, n_epochs=1, n_envs=2)
+    hp["policy_kwargs"] = "dict(net_arch=dict(pi=[8], vf=[8]))"
+    (tmp / "t.yml").write_text(yaml.safe_dump({ENV: hp}))
+    cfg = TrainConfig(
+        "privileged_ppo",
+        ENV,
+        timesteps=64,
+        out=tmp / "teacher",
+        hyperparams=tmp / "t.yml",
+        env_kwargs={"max_episode_steps": 8},
+        eval_freq=32,
+        eval_episodes=1,
+        checkpoint_freq=32,
+        frame_stack=2,
+        progress_bar=False,
+        tensorboard=False,
+    )
+    return train_mod.train(cfg)
+
+
+def _student_yaml(tmp_path: Path, **extra) -> Path:
+    hs = load_hyperparams("teacher_student", ENV)
+    hs.update(n_envs=2, steps_per_iteration=32, epochs=2, batch_size=16, history=3, hidden=[8], **extra)
+    p = tmp_path / "s.yml"
+    p.write_text(yaml.safe_dump({ENV: hs}))
+    return p
+
+
+def test_the_teacher_reads_the_privileged_vector_and_is_not_deployable(teacher_run, tmp_path):
+    from gfb_agents.learned.teacher_student import load_teacher
+
+    meta = json.loads((teacher_run / "run.json").read_text())
+    assert meta["algo"] == "privileged_ppo" and meta["privileged"] == list(EPISODE_FIELDS)
+    assert meta["best_validation"] is not None  # validated with the hidden draws handed over
+    teacher, _ = load_teacher(teacher_run)
+    rng = np.random.default_rng(1)
+    obs = rng.normal(size=(3, 18)).astype(np.float32)
+    priv = rng.normal(size=(3, len(EPISODE_FIELDS))).astype(np.float32)
+    a1 = teacher.act(obs, priv, np.ones(3, bool))
+    teacher.reset()
+    a2 = teacher.act(obs, 50 * priv, np.ones(3, bool))
+    assert not np.allclose(a1, a2)  # its actor does read the privileged vector
+    with pytest.raises(ValueError, match="not a deployable policy"):
+        LearnedPolicy(teacher_run)
+    with pytest.raises(ValueError, match="not exported"):
+        export_policy(teacher_run, "teacher", root=tmp_path / "policies")
+
+
+def test_the_student_is_distilled_by_dagger_resumes_and_deploys_from_the_observation(
+    teacher_run, tmp_path, monkeypatch
+):
+    from gfb_agents.learned import teacher_student as ts
+
+    cfg = ts.DistillConfig(
+        teacher=teacher_run,
+        timesteps=64,
+        out=tmp_path / "s",
+        hyperparams=_student_yaml(tmp_path),
+        eval_episodes=1,
+    )
+    real = ts._atomic_json
+
+    def killed_after_first_checkpoint(path, obj):
+        real(path, obj)
+        if path.name == "latest.json":
+            raise RuntimeError("killed")
+
+    monkeypatch.setattr(ts, "_atomic_json", killed_after_first_checkpoint)
+    with pytest.raises(RuntimeError, match="killed"):
+        ts.distill(cfg)
+    monkeypatch.undo()
+    assert json.loads((tmp_path / "s" / "checkpoints" / "latest.json").read_text())["timesteps"] == 32
+    out = ts.distill(cfg)
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["algo"] == "teacher_student" and meta["timesteps"] == 64 and meta["frame_stack"] == 3
+    assert [(s["start_timesteps"], s["end_timesteps"], s["ended"]) for s in meta["sessions"]] == [
+        (0, 32, "killed"),
+        (32, 64, "finished"),
+    ]
+    assert [s["env_seed"] for s in meta["sessions"]] == [seeds.train_env_seed(0, 0, k) for k in (0, 1)]
+    hist = json.loads((out / "validation.json").read_text())["history"]
+    assert [h["beta"] for h in hist] == [1.0, 0.5] and [h["samples"] for h in hist] == [32, 64]
+    # a rerun of a finished distillation does nothing
+    t = (out / "run.json").stat().st_mtime_ns
+    ts.distill(cfg)
+    assert (out / "run.json").stat().st_mtime_ns == t
+    # deployed: the student alone, on an env without the privileged channel; exported small
+    pol = LearnedPolicy(out)
+    assert isinstance(pol.model, DeployedActor) and pol.model.obs_dim == 3 * 18
+    res = run_episode(gym.make(ENV, max_episode_steps=4), pol, seed=seeds.VALIDATION.first(1)[0])
+    assert res.steps == 4 and math.isfinite(res.episode_return)
+    dest = export_policy(out, "student", root=tmp_path / "policies")
+    assert (dest / ACTOR_FILE).stat().st_size < 20_000 and not (dest / "model.zip").exists()
+    assert LearnedPolicy(dest).frame_stack == 3
+
+
+@pytest.mark.parametrize(
+    "extra, fragment",
+    [
+        ([], "needs --teacher RUN"),
+        (["--teacher", "{ppo}"], "the teacher is a privileged_ppo run"),
+        (["--teacher", "{teacher}", "--frame-stack", "4"], "--frame-stack: not with --algo teacher_student"),
+        (["--teacher", "{teacher}", "--hyperparams", "{bad}"], "hyperparameters ['bogus'] unknown"),
+        (["--teacher", "{teacher}", "--env", "gfb_env/WhirlRecovery-v1"], "the teacher was trained on"),
+    ],
+)
+def test_teacher_student_bad_options_are_refused_with_one_line(
+    teacher_run, tmp_path, capsys, extra, fragment
+):
+    (tmp_path / "ppo").mkdir()
+    (tmp_path / "ppo" / "run.json").write_text(json.dumps({"algo": "ppo", "env_id": ENV}))
+    bad = _student_yaml(tmp_path, bogus=1)
+    subs = {"{ppo}": str(tmp_path / "ppo"), "{teacher}": str(teacher_run), "{bad}": str(bad)}
+    argv = ["--algo", "teacher_student", "--out", str(tmp_path / "exp")]
+    argv += [subs.get(x, x) for x in extra]
     _refused(train_main, argv, fragment, capsys, within_s=15.0)
     assert not (tmp_path / "exp").exists()

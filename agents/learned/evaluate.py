@@ -2,7 +2,10 @@
 
 * :class:`LearnedPolicy` wraps a committed SB3 model (``model.zip``) and its VecNormalize statistics
   (``vecnormalize.pkl``) behind the :class:`~gfb_agents.policy.Policy` interface: ``predict`` normalises the
-  raw observation with the saved statistics and calls the model.
+  raw observation with the saved statistics and calls the model.  A policy trained with the privileged
+  vector (:data:`ACTOR_ONLY_ALGOS`: the asymmetric actor-critic, the distilled student) is its actor alone
+  (:class:`~gfb_agents.learned.asymmetric.DeployedActor`, from ``actor.pt`` or the run's ``model.zip``),
+  which takes the public observation only.
 * :func:`run_episode` plays one seeded episode and returns an :class:`EpisodeResult` (return, success,
   time to target, final speed, max whirl amplitude, touchdown, the (Lambda, D_W) path).
 * :func:`evaluate` plays a fixed list of seeds and :func:`summarise` reduces the results to the benchmark
@@ -120,7 +123,8 @@ class LearnedPolicy(Policy):
     """An SB3 model with its observation normalisation (the files ``gfb_agents.learned.train`` writes).
 
     Args:
-        path: a directory with ``model.zip`` (+ ``vecnormalize.pkl``, + ``run.json`` naming the algo and
+        path: a directory with ``model.zip`` or ``actor.pt`` (+ ``vecnormalize.pkl``, + ``run.json`` or
+            ``policy.json`` naming the algo and
             env id), a training run's directory (then ``which`` picks ``best/``, the checkpoint selected on
             the validation seeds, or the final ``model.zip``), or the ``.zip`` itself.
         algo: ``"ppo"``, ``"sac"`` or ``"recurrentppo"`` (default: from ``run.json``).

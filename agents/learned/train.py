@@ -14,6 +14,12 @@ Python / NumPy / torch with ``r`` and resets training env ``i`` with ``train_env
 (inside the TRAIN range); model selection plays the first ``--eval-episodes`` VALIDATION seeds; the TEST
 seeds are never touched here.  Memory: ``--algo recurrentppo`` (sb3-contrib's LSTM policy) or
 ``--frame-stack K`` (the last K observations, SB3's ``VecFrameStack``, K <= :data:`MAX_FRAME_STACK`) for PPO.
+Privileged training (issue 21): ``--algo asymmetric_ppo`` (the critic also reads the episode's privileged
+vector, :mod:`gfb_agents.learned.asymmetric`) and ``--algo privileged_ppo`` (the teacher of
+:mod:`gfb_agents.learned.teacher_student`: actor and critic read it) train on the observation
+``{"obs", "privileged"}`` (:class:`~gfb_agents.learned.privileged.PrivilegedVecEnv` under VecNormalize and
+VecFrameStack); validation plays the deployed actor on the plain observation (the teacher: handed the
+episode's draws through ``privileged_info=True``).
 
 Each run lives in ``<out>/seed<r>`` (``--out`` default ``runs/<env>_<algo>``, gitignored)::
 

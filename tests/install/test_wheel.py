@@ -52,7 +52,7 @@ DATA_FILES = (
     *sorted(
         "gfb_agents/" + str(f.relative_to(REPO / "agents"))
         for f in (REPO / "agents" / "policies").rglob("*")
-        if f.suffix in (".zip", ".pkl", ".json")
+        if f.suffix in (".zip", ".pkl", ".json", ".pt")
     ),
 )
 

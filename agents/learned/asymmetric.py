@@ -2,7 +2,7 @@
 vector (:mod:`gfb_agents.learned.privileged`), the actor only the observation (with its frame stack).
 
 The SB3 way: the training env's observation is a ``Dict`` ``{"obs", "privileged"}``
-(:class:`~gfb_agents.learned.privileged.PrivilegedVecEnv`, then ``VecNormalize`` and ``VecFrameStack`` as for
+(:class:`~gfb_agents.learned.vec_env.PrivilegedVecEnv`, then ``VecNormalize`` and ``VecFrameStack`` as for
 plain PPO); :class:`AsymmetricActorCriticPolicy` is an ``ActorCriticPolicy`` with separate features
 extractors (``share_features_extractor=False``): the actor's (:class:`ObservationExtractor`) flattens
 ``"obs"`` only, the critic's (:class:`CriticExtractor`) ``"obs"`` and ``"privileged"``; the MLP extractor

@@ -27,6 +27,9 @@ so one layout serves every task id):
 ``probe_bias_y_um``        the Y probe's offset of the episode, um
 =========================  ======================================================================
 
+The SB3 wrapper that puts the vector beside the observation in training is
+:class:`gfb_agents.learned.vec_env.PrivilegedVecEnv` (this module needs no SB3 nor torch).
+
 These are drawn at reset and fixed for the episode, so the vector of an ended episode (for the value of
 its last observation) is the one cached at its reset.  Left out: the base shocks (drawn step by step; not
 known ahead even to the oracle), the sensor noise of each observation (white: nothing to learn), the task's
@@ -46,15 +49,12 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvStepReturn, VecEnvWrapper
 
 __all__ = [
     "EPISODE_FIELDS",
     "STEP_QUANTITIES",
     "OBS_KEY",
     "PRIVILEGED_KEY",
-    "PrivilegedVecEnv",
     "episode_vector",
     "privileged_names",
     "check_quantities",
@@ -128,77 +128,3 @@ def episode_vector(hidden: Mapping[str, Any]) -> np.ndarray:
         v += [1.0, u["balance_grade_mm_s"], u["magnitude_um"], math.cos(ph), math.sin(ph)]
     v += [float(bias[0]), float(bias[1])]
     return np.asarray(v, dtype=np.float32)
-
-
-def _base(venv: VecEnv) -> VecEnv:
-    while isinstance(venv, VecEnvWrapper):
-        venv = venv.venv
-    return venv
-
-
-class PrivilegedVecEnv(VecEnvWrapper):
-    """A ``VecEnv`` wrapper whose observation is ``{"obs": the env's observation, "privileged": the
-    episode's privileged vector}`` (module docstring), for training only.
-
-    Wraps an SB3 ``VecEnv`` of the task (the native vector env's adapter or ``DummyVecEnv``; below any
-    ``VecNormalize`` / ``VecFrameStack``).  ``terminal_observation`` of an ended env is a dict too, with the
-    ended episode's vector.  ``quantities``: the step-varying entries (:data:`STEP_QUANTITIES`) to append;
-    they need the envs made with ``privileged_info=True`` (checked at the first reset, one line)."""
-
-    def __init__(self, venv: VecEnv, quantities: Sequence[str] = ()):
-        self.quantities = check_quantities(quantities)
-        self.names = privileged_names(self.quantities)
-        if not isinstance(venv.observation_space, spaces.Box):
-            raise ValueError(f"PrivilegedVecEnv wraps a Box observation, got {venv.observation_space}")
-        obs_space = spaces.Dict(
-            {
-                OBS_KEY: venv.observation_space,
-                PRIVILEGED_KEY: spaces.Box(-np.inf, np.inf, (len(self.names),), np.float32),
-            }
-        )
-        super().__init__(venv, observation_space=obs_space)
-        self._vec = np.zeros((self.num_envs, len(self.names)), dtype=np.float32)
-
-    def _quantities(self, info: Mapping[str, Any]) -> list[float]:
-        if not self.quantities:
-            return []
-        priv = info.get("privileged")
-        if priv is None:
-            raise ValueError(
-                f"privileged quantities {list(self.quantities)} need the env made with privileged_info=True"
-            )
-        return [float(priv[q]) for q in self.quantities]
-
-    def _episode(self, i: int) -> np.ndarray:
-        (hidden,) = self.venv.env_method("hidden_parameters", indices=[i])
-        return episode_vector(hidden)
-
-    def _fill(self, i: int, reset_info: Mapping[str, Any]) -> None:
-        e = self._episode(i)
-        self._vec[i, : e.size] = e
-        self._vec[i, e.size :] = self._quantities(reset_info)
-
-    def _dict(self, obs: np.ndarray) -> dict[str, np.ndarray]:
-        return {OBS_KEY: obs, PRIVILEGED_KEY: self._vec.copy()}
-
-    def reset(self) -> dict[str, np.ndarray]:
-        obs = self.venv.reset()
-        infos = _base(self.venv).reset_infos
-        for i in range(self.num_envs):
-            self._fill(i, infos[i])
-        return self._dict(obs)
-
-    def step_wait(self) -> VecEnvStepReturn:
-        obs, rewards, dones, infos = self.venv.step_wait()
-        n_ep = len(EPISODE_FIELDS)
-        reset_infos = _base(self.venv).reset_infos
-        for i in range(self.num_envs):
-            # the step's own quantities: for an ended env those of its last step (its info's)
-            self._vec[i, n_ep:] = self._quantities(infos[i])
-            if dones[i]:
-                infos[i]["terminal_observation"] = {
-                    OBS_KEY: infos[i]["terminal_observation"],
-                    PRIVILEGED_KEY: self._vec[i].copy(),
-                }
-                self._fill(i, reset_infos[i])  # the new episode's draws, its reset info
-        return self._dict(obs), rewards, dones, infos

@@ -3,7 +3,7 @@ the observation history, distilled from it by DAgger.
 
 1. The teacher: ``--algo privileged_ppo`` (:func:`gfb_agents.learned.train.train`, every feature of the
    training runs: checkpoints, resume, validation, TRAIN seeds): PPO with SB3's ``MultiInputPolicy`` on the
-   ``{"obs", "privileged"}`` observation (:class:`~gfb_agents.learned.privileged.PrivilegedVecEnv`), actor
+   ``{"obs", "privileged"}`` observation (:class:`~gfb_agents.learned.vec_env.PrivilegedVecEnv`), actor
    and critic both reading the episode's privileged vector.  It is not a deployable policy; its validation
    plays :class:`TeacherPolicy`, handed each episode's hidden draws through the privileged channel.
 2. The student: ``--algo teacher_student --teacher RUN`` (:func:`distill`): an MLP over the last
@@ -323,8 +323,9 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
 
     from gfb_agents.learned.asymmetric import ACTOR_FILE, DeployedActor
     from gfb_agents.learned.evaluate import LearnedPolicy, evaluate
-    from gfb_agents.learned.privileged import OBS_KEY, PRIVILEGED_KEY, PrivilegedVecEnv
+    from gfb_agents.learned.privileged import OBS_KEY, PRIVILEGED_KEY
     from gfb_agents.learned.train import _fsync_folder, make_vec_env_for
+    from gfb_agents.learned.vec_env import PrivilegedVecEnv
 
     p = c.plan()
     out = c.run_dir()

@@ -17,7 +17,7 @@ seeds are never touched here.  Memory: ``--algo recurrentppo`` (sb3-contrib's LS
 Privileged training (issue 21): ``--algo asymmetric_ppo`` (the critic also reads the episode's privileged
 vector, :mod:`gfb_agents.learned.asymmetric`) and ``--algo privileged_ppo`` (the teacher of
 :mod:`gfb_agents.learned.teacher_student`: actor and critic read it) train on the observation
-``{"obs", "privileged"}`` (:class:`~gfb_agents.learned.privileged.PrivilegedVecEnv` under VecNormalize and
+``{"obs", "privileged"}`` (:class:`~gfb_agents.learned.vec_env.PrivilegedVecEnv` under VecNormalize and
 VecFrameStack); validation plays the deployed actor on the plain observation (the teacher: handed the
 episode's draws through ``privileged_info=True``).
 
@@ -852,7 +852,7 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
     if algo in PRIVILEGED_INPUT_ALGOS:
         # training only: the privileged vector beside the observation (asymmetric_ppo: the critic's
         # input; the validation env and the deployed actor get the plain observation)
-        from gfb_agents.learned.privileged import PrivilegedVecEnv
+        from gfb_agents.learned.vec_env import PrivilegedVecEnv
 
         venv = PrivilegedVecEnv(venv, c.privileged_quantities)
     norm = zoo["normalize"]

@@ -25,11 +25,11 @@ from gfb_agents.learned.privileged import (
     EPISODE_FIELDS,
     OBS_KEY,
     PRIVILEGED_KEY,
-    PrivilegedVecEnv,
     episode_vector,
     privileged_names,
 )
 from gfb_agents.learned.train import TrainConfig, load_hyperparams, make_vec_env_for
+from gfb_agents.learned.vec_env import PrivilegedVecEnv
 from gfb_experiments.train import main as train_main
 
 ENV = "gfb_env/RunUp-v1"

@@ -244,7 +244,7 @@ def _distill_main(ap, a, run_seeds: list[int], cmd: str) -> int:
         )
         configs = [DistillConfig(**{**c.as_dict(), "out": root / f"seed{c.seed}"}) for c in configs]
         for c in configs:
-            c.plan()
+            c.check_folder()
         check_output_dir(str(root), "--out")
     except (ValueError, FileNotFoundError) as exc:
         ap.error(str(exc))

@@ -250,6 +250,15 @@ class DistillConfig:
     def as_dict(self) -> dict[str, Any]:
         return {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(self).items()}
 
+    def check_folder(self) -> tuple[dict[str, Any], dict | None]:
+        """``(plan, last checkpoint or None)``; ValueError if the run's folder holds a distillation with
+        other settings (teacher, seed, hyperparameters, total, n_envs, ...)."""
+        p = self.plan()
+        prior = _latest(self.run_dir())
+        if prior is not None and prior.get("config") != json.loads(json.dumps({**self.as_dict(), "plan": p})):
+            raise ValueError(f"{self.run_dir()} holds a distillation with other settings; use another --out")
+        return p, prior
+
     def plan(self) -> dict[str, Any]:
         """The hyperparameters (:data:`DISTILL_KEYS`, the YAML's block over the defaults), checked."""
         from gfb_agents.learned.train import load_hyperparams
@@ -327,11 +336,8 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
     from gfb_agents.learned.train import _fsync_folder, make_vec_env_for
     from gfb_agents.learned.vec_env import PrivilegedVecEnv
 
-    p = c.plan()
+    p, prior = c.check_folder()
     out = c.run_dir()
-    prior = _latest(out)
-    if prior is not None and prior.get("config") != {**c.as_dict(), "plan": p}:
-        raise ValueError(f"{out} holds a distillation with other settings; use another --out")
     done_iters = int(prior["iteration"]) if prior else 0
     if (out / "run.json").exists() and done_iters >= p["iterations"]:
         print(f"{out}: already distilled ({done_iters} iterations); nothing to do", file=sys.stderr)

@@ -326,6 +326,8 @@ def test_the_student_is_distilled_by_dagger_resumes_and_deploys_from_the_observa
     t = (out / "run.json").stat().st_mtime_ns
     ts.distill(cfg)
     assert (out / "run.json").stat().st_mtime_ns == t
+    with pytest.raises(ValueError, match="other settings"):
+        ts.distill(ts.DistillConfig(**{**cfg.as_dict(), "timesteps": 96}))
     # deployed: the student alone, on an env without the privileged channel; exported small
     pol = LearnedPolicy(out)
     assert isinstance(pol.model, DeployedActor) and pol.model.obs_dim == 3 * 18

@@ -177,9 +177,9 @@ def _model_digest(entry: AgentEntry, run: int) -> str | None:
     if entry.kind != "learned":
         return None
     d = Path(entry.run_paths[run])
-    base = d / "best" if (d / "best" / "model.zip").exists() else d
+    base = d / "best" if any((d / "best" / m).exists() for m in ("model.zip", "actor.pt")) else d
     h = hashlib.sha256()
-    for name in ("model.zip", "vecnormalize.pkl"):
+    for name in ("model.zip", "actor.pt", "vecnormalize.pkl"):  # actor.pt: a deployed actor alone
         p = base / name
         if p.exists():
             h.update(p.read_bytes())

@@ -1,10 +1,14 @@
 """Train Stable-Baselines3 agents on a gfb_env task: the command line of :mod:`gfb_agents.learned.train`.
 
-    python -m gfb_experiments.train --algo {ppo,sac,recurrentppo} --env gfb_env/RunUpRandomized-v1
+    python -m gfb_experiments.train --algo {ppo,sac,recurrentppo,asymmetric_ppo}
+        --env gfb_env/RunUpRandomized-v1
         [--seeds 0-4 | --seed R] [--timesteps N] [--n-jobs K | --scheduler ADDRESS] [--out DIR]
         [--n-envs K] [--frame-stack K] [--hyperparams FILE] [--env-kwargs JSON] [--eval-freq N]
         [--eval-episodes N] [--checkpoint-freq N] [--keep-checkpoints N] [--no-progress-bar]
-        [--vec-env {dummy,subproc,native}]
+        [--vec-env {dummy,subproc,native}] [--privileged-quantities NAME,...]
+
+``asymmetric_ppo``: PPO whose critic also sees the episode's privileged vector (training only; the actor,
+the deployed policy, sees the observation): :mod:`gfb_agents.learned.asymmetric`.
 
 What a run writes, how it resumes, seeds and model selection: the docstring of
 :mod:`gfb_agents.learned.train`.  Every bad argument is refused before any run starts (one line, exit 2).
@@ -17,6 +21,7 @@ import os
 import shlex
 import sys
 
+from gfb_agents.learned.teacher_student import STUDENT_ALGO, TEACHER_ALGO
 from gfb_agents.learned.train import (
     ALGOS,
     MAX_FRAME_STACK,
@@ -51,8 +56,17 @@ def _parse_seeds(text: str) -> list[int]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = OneLineParser(prog="python -m gfb_experiments.train", description=__doc__.splitlines()[0])
-    ap.add_argument("--algo", required=True, choices=ALGOS)
-    ap.add_argument("--env", default="gfb_env/RunUpRandomized-v1", help="registered env id")
+    ap.add_argument("--algo", required=True, choices=(*ALGOS, STUDENT_ALGO))
+    ap.add_argument(
+        "--env",
+        default=None,
+        help="registered env id (default gfb_env/RunUpRandomized-v1; teacher_student: the teacher's)",
+    )
+    ap.add_argument(
+        "--teacher",
+        default=None,
+        help="teacher_student: the privileged_ppo training run (a seed<r> folder) to distil from",
+    )
     ap.add_argument(
         "--timesteps",
         type=int,
@@ -101,6 +115,12 @@ def main(argv: list[str] | None = None) -> int:
         help="training envs in this process (dummy), one worker process each (subproc), or the task's "
         "native vector env (native)",
     )
+    ap.add_argument(
+        "--privileged-quantities",
+        default=None,
+        help="asymmetric_ppo: true step quantities appended to the critic's privileged vector, e.g. "
+        "whirl_amplitude,min_film_thickness (gfb_agents.learned.privileged.STEP_QUANTITIES)",
+    )
     a = ap.parse_args(argv)
     set_thread_defaults()  # single-threaded BLAS in the subproc workers (see gfb_env._threads)
     env_kwargs = None
@@ -128,10 +148,14 @@ def main(argv: list[str] | None = None) -> int:
     cmd = "python -m gfb_experiments.train " + " ".join(
         shlex.quote(x) for x in (argv if argv is not None else sys.argv[1:])
     )
+    if a.algo == STUDENT_ALGO:
+        return _distill_main(ap, a, run_seeds, cmd)
+    if a.teacher is not None:
+        ap.error(f"--teacher: only with --algo {STUDENT_ALGO}")
     try:
         config = TrainConfig(
             algo=a.algo,
-            env_id=a.env,
+            env_id=a.env or "gfb_env/RunUpRandomized-v1",
             timesteps=a.timesteps,
             seed=run_seeds[0],
             n_envs=a.n_envs,
@@ -148,6 +172,7 @@ def main(argv: list[str] | None = None) -> int:
             verbose=a.verbose,
             torch_threads=a.torch_threads,
             vec_env=a.vec_env,
+            privileged_quantities=tuple(q for q in (a.privileged_quantities or "").split(",") if q),
         )
         check_runs(config, run_seeds, a.scheduler)  # everything a run would fail on, before any starts
         recs = train_seeds(
@@ -173,6 +198,66 @@ def main(argv: list[str] | None = None) -> int:
                 f"{best.get('timesteps')}"
             )
     return 1 if failed else 0
+
+
+def _distill_main(ap, a, run_seeds: list[int], cmd: str) -> int:
+    """``--algo teacher_student``: DAgger from ``--teacher``
+    (:func:`gfb_agents.learned.teacher_student.distill`), one run per seed in ``<out>/seed<r>``, one
+    after another; refusals before any run (one line, exit 2)."""
+    from pathlib import Path
+
+    from gfb_agents.learned.teacher_student import DistillConfig, distill
+
+    if a.teacher is None:
+        ap.error(f"--algo {STUDENT_ALGO} needs --teacher RUN (a {TEACHER_ALGO} training run)")
+    for flag, bad in (
+        ("--frame-stack", a.frame_stack != 1),
+        ("--env-kwargs", a.env_kwargs is not None),
+        ("--scheduler", a.scheduler is not None),
+        ("--n-jobs", a.n_jobs != 1),
+        ("--privileged-quantities", a.privileged_quantities is not None),
+        ("--vec-env subproc", a.vec_env == "subproc"),
+    ):
+        if bad:
+            ap.error(
+                f"{flag}: not with --algo {STUDENT_ALGO} (its history and env come from its YAML and teacher)"
+            )
+    try:
+        configs = [
+            DistillConfig(
+                teacher=Path(a.teacher),
+                timesteps=a.timesteps,
+                seed=r,
+                hyperparams=a.hyperparams,
+                n_envs=a.n_envs,
+                eval_episodes=a.eval_episodes,
+                vec_env=a.vec_env,
+            )
+            for r in run_seeds
+        ]
+        if a.env is not None and a.env != configs[0].env_id:
+            raise ValueError(f"--env {a.env}: the teacher was trained on {configs[0].env_id}")
+        root = (
+            Path(a.out)
+            if a.out is not None
+            else Path("runs") / f"{configs[0].env_id.split('/')[-1]}_{STUDENT_ALGO}"
+        )
+        configs = [DistillConfig(**{**c.as_dict(), "out": root / f"seed{c.seed}"}) for c in configs]
+        for c in configs:
+            c.check_folder()
+        check_output_dir(str(root), "--out")
+    except (ValueError, FileNotFoundError) as exc:
+        ap.error(str(exc))
+    for c in configs:
+        out = distill(c, cmd)
+        meta = json.loads((out / "run.json").read_text())
+        best = meta["best_validation"] or {}
+        print(
+            f"run {c.seed}: {out} {meta['timesteps']} steps, {meta['wall_time_s']} s, "
+            f"{meta['env_steps_per_s']} steps/s, best validation {best.get('mean_return')} at "
+            f"{best.get('timesteps')}"
+        )
+    return 0
 
 
 if __name__ == "__main__":

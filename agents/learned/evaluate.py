@@ -2,7 +2,10 @@
 
 * :class:`LearnedPolicy` wraps a committed SB3 model (``model.zip``) and its VecNormalize statistics
   (``vecnormalize.pkl``) behind the :class:`~gfb_agents.policy.Policy` interface: ``predict`` normalises the
-  raw observation with the saved statistics and calls the model.
+  raw observation with the saved statistics and calls the model.  A policy trained with the privileged
+  vector (:data:`ACTOR_ONLY_ALGOS`: the asymmetric actor-critic, the distilled student) is its actor alone
+  (:class:`~gfb_agents.learned.asymmetric.DeployedActor`, from ``actor.pt`` or the run's ``model.zip``),
+  which takes the public observation only.
 * :func:`run_episode` plays one seeded episode and returns an :class:`EpisodeResult` (return, success,
   time to target, final speed, max whirl amplitude, touchdown, the (Lambda, D_W) path).
 * :func:`evaluate` plays a fixed list of seeds and :func:`summarise` reduces the results to the benchmark
@@ -40,16 +43,28 @@ __all__ = [
     "run_env_id",
     "POLICIES_DIR",
     "LEARNED_ALGOS",
+    "ACTOR_ONLY_ALGOS",
     "algo_class",
 ]
 
 
 #: algorithms a learned policy may come from (``gfb_agents.learned.train --algo``)
-LEARNED_ALGOS = ("ppo", "sac", "recurrentppo")
+LEARNED_ALGOS = ("ppo", "sac", "recurrentppo", "asymmetric_ppo", "teacher_student")
+#: algorithms trained with the privileged vector (:mod:`gfb_agents.learned.privileged`) beside the
+#: observation: their deployed policy is the actor alone
+#: (:class:`~gfb_agents.learned.asymmetric.DeployedActor`), which takes the public observation only
+ACTOR_ONLY_ALGOS = ("asymmetric_ppo", "teacher_student")
+#: the teacher of the teacher-student scheme (:mod:`gfb_agents.learned.teacher_student`): its actor reads
+#: the privileged vector, so it is no deployable policy
+TEACHER_ALGO = "privileged_ppo"
 
 
 def algo_class(algo: str):
     """The SB3 / sb3-contrib class of ``algo`` (one of :data:`LEARNED_ALGOS`)."""
+    if algo in ("asymmetric_ppo", TEACHER_ALGO):
+        from stable_baselines3 import PPO
+
+        return PPO
     if algo == "recurrentppo":
         from sb3_contrib import RecurrentPPO
 
@@ -61,6 +76,29 @@ def algo_class(algo: str):
     return {"ppo": PPO, "sac": SAC}[algo]
 
 
+def _model_file(d: Path) -> Path | None:
+    """``d/model.zip`` (an SB3 model), else ``d/actor.pt`` (a deployed actor alone), else None."""
+    from gfb_agents.learned.asymmetric import ACTOR_FILE
+
+    for name in ("model.zip", ACTOR_FILE):
+        if (d / name).exists():
+            return d / name
+    return None
+
+
+def _obs_statistics(vn) -> tuple[np.ndarray, np.ndarray] | None:
+    """The observation's running mean and variance of a ``VecNormalize`` (its ``"obs"`` entry where the
+    training observation was the privileged ``Dict``), None if it did not normalise observations."""
+    if not vn.norm_obs:
+        return None
+    rms = vn.obs_rms
+    if isinstance(rms, dict):
+        from gfb_agents.learned.privileged import OBS_KEY
+
+        rms = rms[OBS_KEY]
+    return np.array(rms.mean, dtype=np.float64), np.array(rms.var, dtype=np.float64)
+
+
 def _find_meta(*dirs: Path) -> dict:
     for d in dirs:
         for mp in (d / "run.json", d / "policy.json"):
@@ -69,11 +107,24 @@ def _find_meta(*dirs: Path) -> dict:
     return {}
 
 
+def _load_model(path: Path, algo: str):
+    """What :class:`LearnedPolicy` calls: the SB3 model of ``path``, or for :data:`ACTOR_ONLY_ALGOS` the
+    deployed actor alone (from ``actor.pt``, or taken out of the SB3 model of a training run)."""
+    if algo in ACTOR_ONLY_ALGOS:
+        from gfb_agents.learned.asymmetric import ACTOR_FILE, DeployedActor
+
+        if path.name == ACTOR_FILE:
+            return DeployedActor.load(path)
+        return DeployedActor.from_policy(algo_class(algo).load(str(path), device="cpu").policy)
+    return algo_class(algo).load(str(path), device="cpu")
+
+
 class LearnedPolicy(Policy):
     """An SB3 model with its observation normalisation (the files ``gfb_agents.learned.train`` writes).
 
     Args:
-        path: a directory with ``model.zip`` (+ ``vecnormalize.pkl``, + ``run.json`` naming the algo and
+        path: a directory with ``model.zip`` or ``actor.pt`` (+ ``vecnormalize.pkl``, + ``run.json`` or
+            ``policy.json`` naming the algo and
             env id), a training run's directory (then ``which`` picks ``best/``, the checkpoint selected on
             the validation seeds, or the final ``model.zip``), or the ``.zip`` itself.
         algo: ``"ppo"``, ``"sac"`` or ``"recurrentppo"`` (default: from ``run.json``).
@@ -90,23 +141,28 @@ class LearnedPolicy(Policy):
         if which not in ("best", "final"):
             raise ValueError(f"which must be 'best' or 'final', got {which!r}")
         p = Path(path)
-        if p.is_dir() and which == "best" and (p / "best" / "model.zip").exists():
-            zip_path = p / "best" / "model.zip"
+        if p.is_dir() and which == "best" and _model_file(p / "best") is not None:
+            zip_path = _model_file(p / "best")
         else:
-            zip_path = p / "model.zip" if p.is_dir() else p
+            zip_path = (_model_file(p) or p / "model.zip") if p.is_dir() else p
         d = zip_path.parent
         if not zip_path.exists():
             raise FileNotFoundError(f"no model at {zip_path}")
         meta = _find_meta(d, d.parent) if d.name == "best" else _find_meta(d)
         self.meta = meta
         algo = (algo or meta.get("algo") or "").lower()
+        if algo == TEACHER_ALGO:
+            raise ValueError(
+                f"{zip_path}: a {TEACHER_ALGO} teacher reads the privileged vector, it is not a deployable "
+                "policy (distil its student: --algo teacher_student --teacher RUN)"
+            )
         if algo not in LEARNED_ALGOS:
             raise ValueError(f"cannot tell the algorithm of {zip_path}; pass algo= one of {LEARNED_ALGOS}")
         self.algo = algo
         self.env_id: str | None = meta.get("env_id")
         self.frame_stack = int(meta.get("frame_stack", 1) or 1)
         self.recurrent = algo == "recurrentppo"
-        self.model = algo_class(algo).load(str(zip_path), device="cpu")
+        self.model = _load_model(zip_path, algo)
         self.model_path = zip_path
         # the frozen observation statistics only (the unpickled VecNormalize has no venv and cannot be
         # pickled again, e.g. to a joblib worker)
@@ -116,8 +172,9 @@ class LearnedPolicy(Policy):
         if vn.exists():
             with open(vn, "rb") as fh:
                 v = pickle.load(fh)
-            if v.norm_obs:
-                self.obs_mean, self.obs_var = np.asarray(v.obs_rms.mean), np.asarray(v.obs_rms.var)
+            stats = _obs_statistics(v)
+            if stats is not None:
+                self.obs_mean, self.obs_var = stats
                 self.epsilon, self.clip_obs = float(v.epsilon), float(v.clip_obs)
         self._args = (str(path), algo, name, which)
         self.name = name or (p.name if p.is_dir() else zip_path.stem)
@@ -131,17 +188,35 @@ class LearnedPolicy(Policy):
         observation statistics of ``vec_normalize`` are copied (frozen), nothing is read from disk.
         Not picklable (use the saved files for that)."""
         self = cls.__new__(cls)
+        if algo in ACTOR_ONLY_ALGOS:
+            from gfb_agents.learned.asymmetric import DeployedActor
+
+            model = DeployedActor.from_policy(model.policy)  # a copy of the actor now: the snapshot
         self.model, self.algo, self.name, self.meta = model, algo, name, {}
         self.model_path = None
         self.env_id, self.frame_stack, self.recurrent = None, int(frame_stack), algo == "recurrentppo"
         self.obs_mean = self.obs_var = None
         self.epsilon, self.clip_obs = 1e-8, 10.0
-        if vec_normalize is not None and vec_normalize.norm_obs:
-            self.obs_mean = np.array(vec_normalize.obs_rms.mean, dtype=np.float64)
-            self.obs_var = np.array(vec_normalize.obs_rms.var, dtype=np.float64)
+        stats = None if vec_normalize is None else _obs_statistics(vec_normalize)
+        if stats is not None:
+            self.obs_mean, self.obs_var = stats
             self.epsilon, self.clip_obs = float(vec_normalize.epsilon), float(vec_normalize.clip_obs)
         self._args = None
         self._stack = None
+        return self
+
+    @classmethod
+    def from_actor(
+        cls, actor, vec_normalize_path: str | Path | None, frame_stack: int, algo: str = "teacher_student"
+    ) -> LearnedPolicy:
+        """A policy of an in-memory :class:`~gfb_agents.learned.asymmetric.DeployedActor` (a student's
+        validation) with the observation statistics of a saved ``vecnormalize.pkl``.  Not picklable."""
+        vn = None
+        if vec_normalize_path is not None and Path(vec_normalize_path).exists():
+            with open(vec_normalize_path, "rb") as fh:
+                vn = pickle.load(fh)
+        self = cls.from_model(None, algo="", vec_normalize=vn, frame_stack=frame_stack, name="validation")
+        self.model, self.algo = actor, algo
         return self
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
@@ -198,15 +273,16 @@ class LearnedPolicy(Policy):
 
 def run_dirs(agent_dir: str | Path) -> list[Path]:
     """The model directories of one learned agent's folder, sorted: the folder itself (``model.zip``) or
-    its ``seed*/`` / ``run*/`` subfolders with a model (``model.zip`` or ``best/model.zip``), one per
+    its ``seed*/`` / ``run*/`` subfolders with a model (``model.zip`` or ``best/model.zip``; ``actor.pt``,
+    a deployed actor alone, counts as a model), one per
     independent training seed (as ``gfb_agents.learned.train --seeds`` and ``export_policy`` write them)."""
     d = Path(agent_dir)
-    if (d / "model.zip").exists():
+    if _model_file(d) is not None:
         return [d]
     return [
         s
         for s in sorted(d.iterdir())
-        if s.is_dir() and ((s / "model.zip").exists() or (s / "best" / "model.zip").exists())
+        if s.is_dir() and (_model_file(s) is not None or _model_file(s / "best") is not None)
     ]
 
 

@@ -6,9 +6,12 @@
 training seeds (``runs/<env>_<algo>``, with ``seed*/run.json``).  For each run it copies ``model.zip`` and
 ``vecnormalize.pkl`` -- the checkpoint selected on the validation seeds (``best/``, default) or the final
 model -- the learning curve, and writes ``policy.json`` (algo, env id, seed, frame stack, command, wall
-time, throughput, timesteps, best validation, which model) and a ``README.md`` stating the same.  Several
-runs land in ``<name>/seed<r>/``, so the ladder (:func:`gfb_agents.ladder.learned_entries`) reads them as
-one learned agent with one row per training seed.  The evaluator
+time, throughput, timesteps, best validation, which model) and a ``README.md`` stating the same.  For
+the methods trained with the privileged vector (``asymmetric_ppo``) the copy is the deployed actor alone,
+``actor.pt`` (:class:`gfb_agents.learned.asymmetric.DeployedActor`: no critic, no optimiser state) instead
+of ``model.zip``.  Several runs land in ``<name>/seed<r>/``, so the ladder
+(:func:`gfb_agents.ladder.learned_entries`) reads them as one learned agent with one row per training
+seed.  The evaluator
 (:class:`gfb_agents.learned.evaluate.LearnedPolicy`) reads ``policy.json``.
 """
 
@@ -18,7 +21,7 @@ import json
 import shutil
 from pathlib import Path
 
-from gfb_agents.learned.evaluate import POLICIES_DIR
+from gfb_agents.learned.evaluate import ACTOR_ONLY_ALGOS, POLICIES_DIR, TEACHER_ALGO, algo_class
 from gfb_env import jsonio
 
 __all__ = ["export_policy"]
@@ -30,6 +33,7 @@ _KEYS = (
     "seed",
     "n_envs",
     "frame_stack",
+    "privileged",
     "timesteps",
     "wall_time_s",
     "env_steps_per_s",
@@ -48,6 +52,11 @@ _KEYS = (
 
 
 def _sources(run: Path, which: str) -> tuple[Path, Path]:
+    from gfb_agents.learned.asymmetric import ACTOR_FILE
+
+    if (run / ACTOR_FILE).exists():  # a distilled student: the actor alone already
+        d = run / "best" if which == "best" and (run / "best" / ACTOR_FILE).exists() else run
+        return d / ACTOR_FILE, d / "vecnormalize.pkl"
     if which == "final":
         return run / "model.zip", run / "vecnormalize.pkl"
     if (run / "best" / "model.zip").exists():
@@ -58,11 +67,27 @@ def _sources(run: Path, which: str) -> tuple[Path, Path]:
 
 def _export_run(run: Path, dest: Path, name: str, which: str) -> Path:
     meta = json.loads((run / "run.json").read_text())
+    if meta.get("algo") == TEACHER_ALGO:
+        raise ValueError(
+            f"{run}: a {TEACHER_ALGO} teacher reads the privileged vector and is not exported; export its "
+            "distilled student (--algo teacher_student)"
+        )
     src_model, src_vn = _sources(run, which)
     if not src_model.exists():
         raise FileNotFoundError(f"no {src_model}")
     dest.mkdir(parents=True, exist_ok=True)
-    shutil.copy2(src_model, dest / "model.zip")
+    from gfb_agents.learned.asymmetric import ACTOR_FILE, DeployedActor
+
+    if src_model.name == ACTOR_FILE:
+        shutil.copy2(src_model, dest / ACTOR_FILE)
+    elif meta["algo"] in ACTOR_ONLY_ALGOS:
+        # the actor alone: what the deployed policy runs (the critic read the privileged vector)
+        policy = algo_class(meta["algo"]).load(str(src_model), device="cpu").policy
+        DeployedActor.from_policy(policy).save(
+            dest / ACTOR_FILE, {"algo": meta["algo"], "env_id": meta["env_id"], "model": which}
+        )
+    else:
+        shutil.copy2(src_model, dest / "model.zip")
     if src_vn.exists():
         shutil.copy2(src_vn, dest / "vecnormalize.pkl")
     if (run / "learning_curve.png").exists():
@@ -86,7 +111,9 @@ def _export_run(run: Path, dest: Path, name: str, which: str) -> Path:
         + (" (stopped by Ctrl-C before the requested total)" if meta.get("interrupted") else ""),
         f"* model selection on the validation seeds: best mean return {bv.get('mean_return', '?')} at "
         f"{bv.get('timesteps', '?')} steps (see `policy.json`)",
-        "* files: `model.zip` (SB3), `vecnormalize.pkl` (observation statistics; load with "
+        "* files: "
+        + ("`actor.pt` (the actor alone)" if meta["algo"] in ACTOR_ONLY_ALGOS else "`model.zip` (SB3)")
+        + ", `vecnormalize.pkl` (observation statistics; load with "
         "`gfb_agents.learned.evaluate.LearnedPolicy`), `learning_curve.png`, `policy.json`",
         "* benchmark results: `results/benchmark_agents.md`",
         "",

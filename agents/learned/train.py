@@ -14,6 +14,12 @@ Python / NumPy / torch with ``r`` and resets training env ``i`` with ``train_env
 (inside the TRAIN range); model selection plays the first ``--eval-episodes`` VALIDATION seeds; the TEST
 seeds are never touched here.  Memory: ``--algo recurrentppo`` (sb3-contrib's LSTM policy) or
 ``--frame-stack K`` (the last K observations, SB3's ``VecFrameStack``, K <= :data:`MAX_FRAME_STACK`) for PPO.
+Privileged training (issue 21): ``--algo asymmetric_ppo`` (the critic also reads the episode's privileged
+vector, :mod:`gfb_agents.learned.asymmetric`) and ``--algo privileged_ppo`` (the teacher of
+:mod:`gfb_agents.learned.teacher_student`: actor and critic read it) train on the observation
+``{"obs", "privileged"}`` (:class:`~gfb_agents.learned.vec_env.PrivilegedVecEnv` under VecNormalize and
+VecFrameStack); validation plays the deployed actor on the plain observation (the teacher: handed the
+episode's draws through ``privileged_info=True``).
 
 Each run lives in ``<out>/seed<r>`` (``--out`` default ``runs/<env>_<algo>``, gitignored)::
 
@@ -63,7 +69,7 @@ import yaml
 
 from gfb_agents import HYPERPARAMS_DIR
 from gfb_agents import seeds as seeds_mod
-from gfb_agents.learned.evaluate import algo_class
+from gfb_agents.learned.evaluate import TEACHER_ALGO, algo_class
 from gfb_agents.seeds import VALIDATION
 from gfb_env import jsonio
 from gfb_env._threads import set_thread_defaults
@@ -84,7 +90,10 @@ __all__ = [
     "plot_learning_curve",
 ]
 
-ALGOS = ("ppo", "sac", "recurrentppo")
+ALGOS = ("ppo", "sac", "recurrentppo", "asymmetric_ppo", "privileged_ppo")
+#: the algorithms whose training observation holds the privileged vector (the asymmetric critic; the
+#: teacher of :mod:`gfb_agents.learned.teacher_student`, actor and critic)
+PRIVILEGED_INPUT_ALGOS = ("asymmetric_ppo", "privileged_ppo")
 #: the longest ``--frame-stack``: 64 control steps is a quarter of the longest episode (250 steps) and
 #: more history than identifying the bearing needs (the rules use a few steps); the memory grows as
 #: ``n_steps * n_envs * k * obs_dim * 4`` bytes in PPO's rollout buffer (6.9 GiB at k = 100 000, 4.7 MB
@@ -429,10 +438,18 @@ class _Session:
         from gfb_agents.learned.evaluate import LearnedPolicy, evaluate
 
         t = time.perf_counter()
-        pol = LearnedPolicy.from_model(
-            model, self.c.algo, model.get_vec_normalize_env(), self.c.frame_stack, name="validation"
-        )
-        res = evaluate(self.c.env_id, pol, self.validation["seeds"], env_kwargs=self.c.env_kwargs)
+        env_kwargs = self.c.env_kwargs
+        if self.c.algo == TEACHER_ALGO:
+            # the teacher acts on the privileged vector: handed the hidden draws by the opt-in channel
+            from gfb_agents.learned.teacher_student import TeacherPolicy
+
+            pol = TeacherPolicy(model, model.get_vec_normalize_env(), self.c.frame_stack, name="validation")
+            env_kwargs = {**env_kwargs, "privileged_info": True}
+        else:
+            pol = LearnedPolicy.from_model(
+                model, self.c.algo, model.get_vec_normalize_env(), self.c.frame_stack, name="validation"
+            )
+        res = evaluate(self.c.env_id, pol, self.validation["seeds"], env_kwargs=env_kwargs)
         rets = np.array([r.episode_return for r in res])
         rec = {
             "timesteps": int(model.num_timesteps),
@@ -589,6 +606,9 @@ class TrainConfig:
             :data:`MAX_FRAME_STACK`): memory for PPO.
         progress_bar, tensorboard, verbose: output.
         torch_threads: torch CPU threads (1: the env is the bottleneck and cores are shared).
+        privileged_quantities: ``asymmetric_ppo`` only: the step-varying true quantities appended to the
+            critic's privileged vector (:data:`gfb_agents.learned.privileged.STEP_QUANTITIES`; the training
+            envs are then made with ``privileged_info=True``); the episode's draws are always in it.
         vec_env: ``"native"`` (default), ``"dummy"`` or ``"subproc"`` for the training envs
             (:func:`make_vec_env_for`).
     """
@@ -611,6 +631,7 @@ class TrainConfig:
     verbose: int = 0
     torch_threads: int = 1
     vec_env: str = "native"
+    privileged_quantities: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         algo = str(self.algo).lower()
@@ -657,10 +678,21 @@ class TrainConfig:
             v = getattr(self, name)
             if v is not None:
                 object.__setattr__(self, name, Path(v))
+        from gfb_agents.learned.privileged import check_quantities
+
+        if isinstance(self.privileged_quantities, str):
+            raise ValueError("privileged_quantities must be a sequence of names, not a string")
+        object.__setattr__(self, "privileged_quantities", check_quantities(self.privileged_quantities))
+        if self.privileged_quantities and algo != "asymmetric_ppo":
+            # the teacher's validation hands it the episode's draws only (TeacherPolicy)
+            raise ValueError(f"privileged_quantities: only with asymmetric_ppo, not {algo}")
         if self.env_kwargs is None:
             object.__setattr__(self, "env_kwargs", {})
         elif not isinstance(self.env_kwargs, dict):
             raise ValueError(f"env_kwargs must be a dict, got {type(self.env_kwargs).__name__}")
+        if self.env_kwargs.get("privileged_info"):
+            # the validation env is made from env_kwargs: it must be the public interface
+            raise ValueError("env_kwargs: privileged_info is set by the training command, not here")
 
     @property
     def task(self) -> str:
@@ -677,13 +709,19 @@ class TrainConfig:
         return self.out if self.out is not None else Path("runs") / self.experiment_name / f"seed{self.seed}"
 
     def as_dict(self) -> dict[str, Any]:
-        return {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(self).items()}
+        return {
+            k: (str(v) if isinstance(v, Path) else list(v) if isinstance(v, tuple) else v)
+            for k, v in asdict(self).items()
+        }
 
 
 def _comparable(cfg: dict) -> dict:
     """The fields a resumed run must share with the run it continues."""
     keep = ("algo", "env_id", "seed", "env_kwargs", "frame_stack", "hyperparams", "vec_env", "n_envs")
-    return {k: cfg.get(k) for k in keep}
+    out = {k: cfg.get(k) for k in keep}
+    # asymmetric_ppo's critic input; absent from the records of runs before it (the same as none)
+    out["privileged_quantities"] = list(cfg.get("privileged_quantities") or [])
+    return out
 
 
 def _rollout_size(algo: str, kwargs: dict[str, Any], n_envs: int) -> int | None:
@@ -728,6 +766,7 @@ def _run_plan(c: TrainConfig) -> tuple[dict, dict, dict, int, int, int]:
     own = sorted(k for k in kwargs if k in ("self", "env", "seed", "device", "verbose", "tensorboard_log"))
     if own:
         raise ValueError(f"hyperparameters {own} are set by the training command, not the YAML")
+    _policy_class(c.algo, zoo)  # a policy the algorithm cannot take: refused before any run starts
     rollout = _rollout_size(c.algo, kwargs, n_envs)
     total = requested if rollout is None else -(-requested // rollout) * rollout
     return hp, zoo, kwargs, requested, total, n_envs
@@ -808,7 +847,14 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
     monitor_dir = out / "monitor" if session == 0 else out / "monitor" / f"session{session}"
     monitor_dir.mkdir(parents=True, exist_ok=True)
     env_seed = seeds_mod.train_env_seed(seed, 0, session)  # env i: env_seed + i (train_env_seed(seed, i))
-    venv = make_vec_env_for(env_id, n_envs, env_seed, monitor_dir, env_kwargs, vec_env=c.vec_env)
+    train_kwargs = {**env_kwargs, "privileged_info": True} if c.privileged_quantities else env_kwargs
+    venv = make_vec_env_for(env_id, n_envs, env_seed, monitor_dir, train_kwargs, vec_env=c.vec_env)
+    if algo in PRIVILEGED_INPUT_ALGOS:
+        # training only: the privileged vector beside the observation (asymmetric_ppo: the critic's
+        # input; the validation env and the deployed actor get the plain observation)
+        from gfb_agents.learned.vec_env import PrivilegedVecEnv
+
+        venv = PrivilegedVecEnv(venv, c.privileged_quantities)
     norm = zoo["normalize"]
     cls = algo_class(algo)
     tb = str(out / "tb") if tensorboard else None
@@ -830,7 +876,7 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
         if c.frame_stack > 1:
             venv = VecFrameStack(venv, c.frame_stack)
         model = cls(
-            zoo.get("policy", "MlpPolicy"),
+            _policy_class(algo, zoo),
             venv,
             seed=seed,
             device="cpu",
@@ -898,6 +944,7 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
         "seed": seed,
         "n_envs": n_envs,
         "frame_stack": c.frame_stack,
+        **({"privileged": list(_privileged_names(c))} if algo in PRIVILEGED_INPUT_ALGOS else {}),
         "timesteps": steps,
         "total_timesteps": total,
         "requested_timesteps": requested,
@@ -925,6 +972,26 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
     venv.close()
     sess.log(model, "done" if not interrupted else "interrupted")
     return out
+
+
+def _privileged_names(c: TrainConfig) -> tuple[str, ...]:
+    from gfb_agents.learned.privileged import privileged_names
+
+    return privileged_names(c.privileged_quantities)
+
+
+def _policy_class(algo: str, zoo: dict[str, Any]):
+    """The ``policy`` argument of the algorithm: the YAML's name, or for ``asymmetric_ppo`` its class."""
+    name = zoo.get("policy", "MlpPolicy")
+    if algo == "asymmetric_ppo":
+        from gfb_agents.learned.asymmetric import AsymmetricActorCriticPolicy
+
+        if name != "AsymmetricActorCriticPolicy":
+            raise ValueError(f"asymmetric_ppo: policy must be 'AsymmetricActorCriticPolicy', got {name!r}")
+        return AsymmetricActorCriticPolicy
+    if algo == TEACHER_ALGO and name != "MultiInputPolicy":
+        raise ValueError(f"{TEACHER_ALGO}: policy must be 'MultiInputPolicy', got {name!r}")
+    return name
 
 
 def _train_point(**cfg: Any) -> dict:

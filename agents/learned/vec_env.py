@@ -12,16 +12,31 @@ vector env's stages.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
+from gymnasium import spaces
+from stable_baselines3.common.vec_env.base_vec_env import (
+    VecEnv,
+    VecEnvIndices,
+    VecEnvObs,
+    VecEnvStepReturn,
+    VecEnvWrapper,
+)
 
+from gfb_agents.learned.privileged import (
+    EPISODE_FIELDS,
+    OBS_KEY,
+    PRIVILEGED_KEY,
+    check_quantities,
+    episode_vector,
+    privileged_names,
+)
 from gfb_env.envs.vector import GFBVectorEnv
 
-__all__ = ["GFBSB3VecEnv"]
+__all__ = ["GFBSB3VecEnv", "PrivilegedVecEnv"]
 
 
 class GFBSB3VecEnv(VecEnv):
@@ -88,3 +103,77 @@ class GFBSB3VecEnv(VecEnv):
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
         # the envs are plain task envs (the time limit lives in the vector env)
         return [False for _ in self._envs(indices)]
+
+
+def _base(venv: VecEnv) -> VecEnv:
+    while isinstance(venv, VecEnvWrapper):
+        venv = venv.venv
+    return venv
+
+
+class PrivilegedVecEnv(VecEnvWrapper):
+    """A ``VecEnv`` wrapper whose observation is ``{"obs": the env's observation, "privileged": the
+    episode's privileged vector}`` (module docstring), for training only.
+
+    Wraps an SB3 ``VecEnv`` of the task (the native vector env's adapter or ``DummyVecEnv``; below any
+    ``VecNormalize`` / ``VecFrameStack``).  ``terminal_observation`` of an ended env is a dict too, with the
+    ended episode's vector.  ``quantities``: the step-varying entries (:data:`STEP_QUANTITIES`) to append;
+    they need the envs made with ``privileged_info=True`` (checked at the first reset, one line)."""
+
+    def __init__(self, venv: VecEnv, quantities: Sequence[str] = ()):
+        self.quantities = check_quantities(quantities)
+        self.names = privileged_names(self.quantities)
+        if not isinstance(venv.observation_space, spaces.Box):
+            raise ValueError(f"PrivilegedVecEnv wraps a Box observation, got {venv.observation_space}")
+        obs_space = spaces.Dict(
+            {
+                OBS_KEY: venv.observation_space,
+                PRIVILEGED_KEY: spaces.Box(-np.inf, np.inf, (len(self.names),), np.float32),
+            }
+        )
+        super().__init__(venv, observation_space=obs_space)
+        self._vec = np.zeros((self.num_envs, len(self.names)), dtype=np.float32)
+
+    def _quantities(self, info: Mapping[str, Any]) -> list[float]:
+        if not self.quantities:
+            return []
+        priv = info.get("privileged")
+        if priv is None:
+            raise ValueError(
+                f"privileged quantities {list(self.quantities)} need the env made with privileged_info=True"
+            )
+        return [float(priv[q]) for q in self.quantities]
+
+    def _episode(self, i: int) -> np.ndarray:
+        (hidden,) = self.venv.env_method("hidden_parameters", indices=[i])
+        return episode_vector(hidden)
+
+    def _fill(self, i: int, reset_info: Mapping[str, Any]) -> None:
+        e = self._episode(i)
+        self._vec[i, : e.size] = e
+        self._vec[i, e.size :] = self._quantities(reset_info)
+
+    def _dict(self, obs: np.ndarray) -> dict[str, np.ndarray]:
+        return {OBS_KEY: obs, PRIVILEGED_KEY: self._vec.copy()}
+
+    def reset(self) -> dict[str, np.ndarray]:
+        obs = self.venv.reset()
+        infos = _base(self.venv).reset_infos
+        for i in range(self.num_envs):
+            self._fill(i, infos[i])
+        return self._dict(obs)
+
+    def step_wait(self) -> VecEnvStepReturn:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        n_ep = len(EPISODE_FIELDS)
+        reset_infos = _base(self.venv).reset_infos
+        for i in range(self.num_envs):
+            # the step's own quantities: for an ended env those of its last step (its info's)
+            self._vec[i, n_ep:] = self._quantities(infos[i])
+            if dones[i]:
+                infos[i]["terminal_observation"] = {
+                    OBS_KEY: infos[i]["terminal_observation"],
+                    PRIVILEGED_KEY: self._vec[i].copy(),
+                }
+                self._fill(i, reset_infos[i])  # the new episode's draws, its reset info
+        return self._dict(obs), rewards, dones, infos

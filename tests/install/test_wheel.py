@@ -38,6 +38,9 @@ DATA_FILES = (
     "gfb_agents/hyperparams/ppo.yml",
     "gfb_agents/hyperparams/sac.yml",
     "gfb_agents/hyperparams/recurrentppo.yml",
+    "gfb_agents/hyperparams/asymmetric_ppo.yml",
+    "gfb_agents/hyperparams/privileged_ppo.yml",
+    "gfb_agents/hyperparams/teacher_student.yml",
     # the v1 learned agents: one folder per training seed
     *(
         f"gfb_agents/policies/{task}-v1_ppo_fs4/seed{r}/{f}"
@@ -49,7 +52,7 @@ DATA_FILES = (
     *sorted(
         "gfb_agents/" + str(f.relative_to(REPO / "agents"))
         for f in (REPO / "agents" / "policies").rglob("*")
-        if f.suffix in (".zip", ".pkl", ".json")
+        if f.suffix in (".zip", ".pkl", ".json", ".pt")
     ),
 )
 

@@ -48,8 +48,8 @@ band projection has ``r = 2K`` dimensions: pure noise gives the level ``noise_fl
 ``sigma / sqrt N`` (a non-central chi).  The direct peak-to-peak has no closed form (an extreme of noisy
 samples): it is biased up by the noise (measured in ``tests/machine/test_monitor.py``).
 
-The monitor is not yet part of any observation (the v1 observation is unchanged); ``docs/machine.md``
-says what the v2 observation will take from it.
+The v2 ids' observation takes it per control step (:mod:`gfb_env.envs.interface_v2`); the v1
+observation does not use it.
 """
 
 from __future__ import annotations

@@ -77,8 +77,10 @@ def test_make_vec_returns_the_native_vector_env_for_every_task():
         *((i, {}) for i in ENV_IDS),
         ("gfb_env/RunUp-v1", KICKS),
         *((i, {"raw_probe_samples": True}) for i in V2_ENV_IDS),
+        # v2 episodes that end at their horizon (the final step's verdict keys, the certificate)
+        ("gfb_env/WhirlRecovery-v2", {"episode_steps": 2, "hold_steps": 2}),
     ],
-    ids=[*ENV_IDS, "gfb_env/RunUp-v1-kicks", *V2_ENV_IDS],
+    ids=[*ENV_IDS, "gfb_env/RunUp-v1-kicks", *V2_ENV_IDS, "gfb_env/WhirlRecovery-v2-horizon"],
 )
 def test_native_vector_env_is_sync_vector_env_bit_for_bit(env_id, disturbances):
     """Whole episodes with autoresets (time limit 3), disturbances, noisy sensors, bad actions, a seeded

@@ -10,6 +10,10 @@ Importing this package registers (idempotently):
   (:data:`MACHINE_V1`: actuator lag and rate limit, noisy biased probes and taps, random base shocks
   instead of the velocity kick, a residual unbalance; ``docs/machine.md``) with a hidden damping
   effectiveness (:data:`V1_DAMPING_GAIN_RANGE`).
+* ``gfb_env/RunUp-v2``, ``gfb_env/RunUpRandomized-v2``, ``gfb_env/WhirlRecovery-v2`` (:data:`V2_ENV_IDS`):
+  the same tasks, classes and horizons with the v2 information interface (:data:`INTERFACE_V2`,
+  :mod:`gfb_env.envs.interface_v2`: the vibration monitor's observation, the reward and costs from the
+  measurements, an info with no ground truth, the certificate that forgives a shock's ring-down).
 * the retired ``gfb_env/RunUp-v0``, ``gfb_env/RunUpRandomized-v0``, ``gfb_env/WhirlRecovery-v0``: making
   one raises :class:`~gfb_env.envs.retired.RetiredTaskError` (why, and the -v1 id to use).
 

@@ -739,6 +739,7 @@ class GFBEnv(gym.Env):
             shocks=ep.shock_schedule,
             time_s=b.seconds(self._integ.tau),
             step_s=b.seconds(self.control_interval),
+            step_tau=self.control_interval,
         )
 
     # ---- emit ---------------------------------------------------------------------------------

@@ -12,16 +12,23 @@ for a window without a shock and replaces it from a shock on by "not growing":
 * a shock *acts* in the window if its pulse (arrival to arrival + duration) overlaps the window;
 * the steps of the window before the first acting shock's arrival must stay below ``stable_amplitude``
   (as v1);
-* from the first shock's arrival on, the amplitude at the window's end must not exceed
+* from the first shock's arrival on, the amplitude at the window's end ``A_end`` must not exceed
   ``max(stable_amplitude, A_ref)``, ``A_ref`` the amplitude of the first step that starts after the last
-  acting pulse has ended (the free ring-down's first step); where no step of the window starts after it
-  (a shock in the window's last step or two) the amplitude condition holds trivially;
+  acting pulse has ended (the free ring-down's first step): not growing; and it must decay at least as
+  the actual plant's slowest mode does, ``A_end <= stable_amplitude + A_ref exp(g dtau)`` (g < 0 the
+  growth rate of the equilibrium below, dtau the time from that step to the window's end; the slack
+  ``stable_amplitude`` holds the transient's other modes and the amplitude measured over a non-integer
+  number of periods).  The second test closes a hole of the first: in a hysteresis band (a linearly
+  stable equilibrium beside a stable whirl cycle, docs/envs.md) a shock can kick the rotor onto the
+  cycle, whose amplitude does not grow but does not decay either.  Where no step of the window starts
+  after the last pulse (a shock in the window's last step or two) the amplitude condition holds
+  trivially;
 * the actual plant's equilibrium at the final Lambda and actual D_W must be linearly stable, as v1 (this
   is what the certificate certifies: a ring-down on a stable plant decays, a growing whirl after a shock
   fails, and an unstable plant fails whatever the amplitudes).
 
 Reasons: v1's ``"stable"``, ``"whirl_in_window"``, ``"unstable_equilibrium"``, ``"no_equilibrium"``, plus
-``"whirl_growing_after_shock"``.
+``"whirl_growing_after_shock"`` and ``"whirl_not_decaying_after_shock"``.
 """
 
 from __future__ import annotations
@@ -70,6 +77,7 @@ class AfterShockCertificate:
             plant.shocks,
             plant.time_s,
             plant.step_s,
+            plant.step_tau,
             plant.model,
             bearing_number,
             foil_damping,
@@ -82,6 +90,7 @@ class AfterShockCertificate:
         shocks: tuple,
         time_s: float,
         step_s: float,
+        step_tau: float,
         model: Any,
         bearing_number: float,
         foil_damping: float,
@@ -89,14 +98,15 @@ class AfterShockCertificate:
     ) -> Certificate:
         """The certificate of the window's last ``hold_steps`` true whirl amplitudes, ending at
         ``time_s`` (s) in steps of ``step_s`` (s), given the episode's ``shocks`` (objects with
-        ``time_s`` and ``duration_ms``), and of the plant ``model`` at ``bearing_number`` with the actual
-        ``foil_damping`` (``state``: the warm start)."""
+        ``time_s`` and ``duration_ms``; ``step_tau``: a step in tau), and of the plant ``model`` at
+        ``bearing_number`` with the actual ``foil_damping`` (``state``: the warm start)."""
         n, stable = self.hold_steps, self.stable_amplitude
         window = list(window_amplitudes[-n:])
         if len(window) < n or not all(math.isfinite(a) for a in window):
             return Certificate(False, "whirl_in_window", math.nan)
         start = time_s - n * step_s
         acting = [e for e in shocks if e.time_s <= time_s and e.time_s + 1e-3 * e.duration_ms > start]
+        ref = None
         if not acting:
             if not all(a <= stable for a in window):
                 return Certificate(False, "whirl_in_window", math.nan)
@@ -117,4 +127,8 @@ class AfterShockCertificate:
         g = st.growth_rate
         if not (math.isfinite(g) and g < 0.0):
             return Certificate(False, "unstable_equilibrium", g)
+        if ref is not None:
+            decayed = stable + window[ref] * math.exp(g * (n - 1 - ref) * step_tau)
+            if window[-1] > decayed:
+                return Certificate(False, "whirl_not_decaying_after_shock", g)
         return Certificate(True, "stable", g)

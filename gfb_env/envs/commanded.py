@@ -296,8 +296,8 @@ class CertifiedPlant:
         best_point: the episode's exact best stable point where it is known or cheap (a fixed plant's,
             cached), else None (the success is then decided by one stability test).
         shocks: every base shock of the episode so far (:class:`~gfb_env.machine.ShockEvent`);
-            time_s: the time at the horizon, s; step_s: one control step, s (for the v2 certificate's
-            shock window, :class:`~gfb_env.envs.certify_v2.AfterShockCertificate`).
+            time_s: the time at the horizon, s; step_s, step_tau: one control step in s and in tau (for
+            the v2 certificate's shock window, :class:`~gfb_env.envs.certify_v2.AfterShockCertificate`).
     """
 
     model: GFBModel
@@ -307,6 +307,7 @@ class CertifiedPlant:
     shocks: tuple = ()
     time_s: float = math.nan
     step_s: float = math.nan
+    step_tau: float = math.nan
 
 
 @dataclass

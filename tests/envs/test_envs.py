@@ -40,7 +40,7 @@ def _rollout(env: gym.Env, actions, seed: int | None):
 
 
 # ------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", (*ENV_IDS, *V2_ENV_IDS))
 def test_gymnasium_check_env(env_id):
     from gymnasium.utils.env_checker import check_env
 
@@ -49,7 +49,7 @@ def test_gymnasium_check_env(env_id):
     env.close()
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", (*ENV_IDS, *V2_ENV_IDS))
 def test_sb3_check_env(env_id):
     from stable_baselines3.common.env_checker import check_env
 

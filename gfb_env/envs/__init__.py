@@ -10,6 +10,10 @@ Importing this package registers (idempotently):
   (:data:`MACHINE_V1`: actuator lag and rate limit, noisy biased probes and taps, random base shocks
   instead of the velocity kick, a residual unbalance; ``docs/machine.md``) with a hidden damping
   effectiveness (:data:`V1_DAMPING_GAIN_RANGE`).
+* ``gfb_env/RunUp-v2``, ``gfb_env/RunUpRandomized-v2``, ``gfb_env/WhirlRecovery-v2`` (:data:`V2_ENV_IDS`):
+  the same tasks, classes and horizons with the v2 information interface (:data:`INTERFACE_V2`,
+  :mod:`gfb_env.envs.interface_v2`: the vibration monitor's observation, the reward and costs from the
+  measurements, an info with no ground truth, the certificate that forgives a shock's ring-down).
 * the retired ``gfb_env/RunUp-v0``, ``gfb_env/RunUpRandomized-v0``, ``gfb_env/WhirlRecovery-v0``: making
   one raises :class:`~gfb_env.envs.retired.RetiredTaskError` (why, and the -v1 id to use).
 
@@ -25,6 +29,7 @@ from gymnasium.envs.registration import register, registry
 from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.envs.base import DEFAULT_GRID, GFBEnv, PlantResult, StepPlan, advance_plans
 from gfb_env.envs.commanded import CommandedObjective
+from gfb_env.envs.interface_v2 import MonitorInterface
 from gfb_env.envs.retired import RETIRED_IDS, RetiredEntryPoint, RetiredTaskError
 from gfb_env.envs.run_up import RunUpEnv
 from gfb_env.envs.run_up_randomized import RunUpRandomizedEnv
@@ -51,6 +56,9 @@ __all__ = [
     "DEFAULT_GRID",
     "NOMINAL_BEARING",
     "ENV_IDS",
+    "V2_ENV_IDS",
+    "INTERFACE_V2",
+    "MonitorInterface",
     "RETIRED_IDS",
     "RetiredTaskError",
     "MACHINE_V1",
@@ -99,14 +107,34 @@ V1_TASK: dict = {
     "shock_arrivals": ShockArrivals(peak_g_range=V1_SHOCK_PEAK_G_RANGE),
 }
 
+#: The v2 interface (issue 19): the vibration monitor's observation, the reward and costs from the
+#: measurements, the sensor-only info, the certificate that forgives a shock's ring-down
+#: (:mod:`gfb_env.envs.interface_v2`); the same machine, tasks and horizons as v1.
+INTERFACE_V2 = MonitorInterface()
+
+_WHIRL_RECOVERY_V1 = {
+    **V1_TASK,
+    "damping_actuator": FoilDampingActuator(gain_range=V1_WHIRL_RECOVERY_GAIN_RANGE),
+}
+
 #: registered ids -> (entry point, max_episode_steps, default keyword arguments)
 _SPECS = {
     "gfb_env/RunUp-v1": ("gfb_env.envs.run_up:RunUpEnv", 250, V1_TASK),
     "gfb_env/RunUpRandomized-v1": ("gfb_env.envs.run_up_randomized:RunUpRandomizedEnv", 250, V1_TASK),
-    "gfb_env/WhirlRecovery-v1": (
+    "gfb_env/WhirlRecovery-v1": ("gfb_env.envs.whirl_recovery:WhirlRecoveryEnv", 200, _WHIRL_RECOVERY_V1),
+}
+#: the v2 ids: v1's tasks with the v2 interface
+_V2_SPECS = {
+    "gfb_env/RunUp-v2": ("gfb_env.envs.run_up:RunUpEnv", 250, {**V1_TASK, "interface": INTERFACE_V2}),
+    "gfb_env/RunUpRandomized-v2": (
+        "gfb_env.envs.run_up_randomized:RunUpRandomizedEnv",
+        250,
+        {**V1_TASK, "interface": INTERFACE_V2},
+    ),
+    "gfb_env/WhirlRecovery-v2": (
         "gfb_env.envs.whirl_recovery:WhirlRecoveryEnv",
         200,
-        {**V1_TASK, "damping_actuator": FoilDampingActuator(gain_range=V1_WHIRL_RECOVERY_GAIN_RANGE)},
+        {**_WHIRL_RECOVERY_V1, "interface": INTERFACE_V2},
     ),
 }
 #: the native vector env of each task (``gymnasium.make_vec(id, num_envs=N)``; :mod:`gfb_env.envs.vector`)
@@ -115,14 +143,16 @@ _VECTOR_ENTRY_POINTS = {
     "gfb_env.envs.run_up_randomized:RunUpRandomizedEnv": "gfb_env.envs.vector:RunUpRandomizedVectorEnv",
     "gfb_env.envs.whirl_recovery:WhirlRecoveryEnv": "gfb_env.envs.vector:WhirlRecoveryVectorEnv",
 }
-#: the tasks (the v0 ids are retired: :mod:`gfb_env.envs.retired`)
+#: the v1 tasks (the v0 ids are retired: :mod:`gfb_env.envs.retired`)
 ENV_IDS = tuple(_SPECS)
+#: the v2 tasks (issue 19: the information contract, :mod:`gfb_env.envs.interface_v2`)
+V2_ENV_IDS = tuple(_V2_SPECS)
 
 
 def register_envs() -> None:
     """Register the tasks with Gymnasium, and the retired ids as refusals (no-op for ids already
     registered)."""
-    for env_id, (entry_point, steps, kwargs) in _SPECS.items():
+    for env_id, (entry_point, steps, kwargs) in {**_SPECS, **_V2_SPECS}.items():
         if env_id not in registry:
             register(
                 id=env_id,

@@ -102,6 +102,8 @@ class PlantTrace:
     eta_range: tuple[float, float]
     orbit: tuple[np.ndarray, np.ndarray]
     integrator_steps: int
+    #: the samples' times (tau) of ``orbit`` (None where the plant failed: no record)
+    orbit_tau: np.ndarray | None = None
 
 
 #: What the plant phase of a step gives :meth:`GFBEnv.finish_step`: the integrator's result, or the
@@ -122,6 +124,8 @@ class StepPlan:
         integrator: the env's integrator, which the plant advances.
         call: its prepared compiled call (:meth:`~gfb_env.integrator.TrapezoidalIntegrator.prepare`);
             None when preparing it raised a numerical failure, then ``failure``.
+        tau_start, rotation_angle_start: tau and the rotation angle theta at the step's start (the
+            once-per-revolution key of the v2 vibration monitor, :mod:`gfb_env.envs.interface_v2`).
     """
 
     action: np.ndarray
@@ -133,6 +137,8 @@ class StepPlan:
     integrator: TrapezoidalIntegrator
     call: PreparedCall | None
     failure: Exception | None = None
+    tau_start: float = math.nan
+    rotation_angle_start: float = 0.0
 
     def __post_init__(self) -> None:
         if (self.call is None) == (self.failure is None):
@@ -195,6 +201,10 @@ class GFBEnv(gym.Env):
             raise ValueError(f"objective must be a CommandedObjective, got {objective!r}")
         self.config = config
         self.objective = objective
+        #: the information interface (None: v1's observation, reward, costs and info, in this module;
+        #: the v2 ids pass :class:`~gfb_env.envs.interface_v2.MonitorInterface`)
+        self.interface = config.interface
+        self._public_reward = None
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"
@@ -207,13 +217,18 @@ class GFBEnv(gym.Env):
         own_lo, own_hi = objective.observation_bounds()
         extra_lo = (*(float(x) for x in extra[0]), *own_lo) if extra is not None else tuple(own_lo)
         extra_hi = (*(float(x) for x in extra[1]), *own_hi) if extra is not None else tuple(own_hi)
+        extra_names = (*self._extra_observation_names(), *objective.observation_names)
+        if self.interface is not None:  # its entries come first: after the pressure taps
+            mon_lo, mon_hi = self.interface.observation_bounds()
+            extra_lo, extra_hi = (*mon_lo, *extra_lo), (*mon_hi, *extra_hi)
+            extra_names = (*self.interface.observation_names, *extra_names)
         self.observation_layout = ObservationLayout(
             n_pressure_probes=cfg.n_pressure_probes,
             speed_scale_rpm=cfg.speed_scale_rpm,
             max_speed_rpm=cfg.speed_range_rpm[1],
             extra_low=tuple(float(x) for x in extra_lo),
             extra_high=tuple(float(x) for x in extra_hi),
-            extra_names=(*self._extra_observation_names(), *objective.observation_names),
+            extra_names=extra_names,
         )
         # record the trajectory ~120 times per control step (>= 30 samples per whirl period)
         self.record_interval = cfg.control_interval / 120.0
@@ -313,6 +328,18 @@ class GFBEnv(gym.Env):
     def damping_gain(self) -> float:
         """The episode's hidden damping effectiveness ``g`` (actual D_W = g x commanded; for oracles)."""
         return float(self.episode.actuator.gain)
+
+    @property
+    def public_reward_config(self) -> Any:
+        """The public configuration of the v2 reward and costs
+        (:class:`~gfb_env.envs.monitor_reward.PublicRewardConfig`; with the episode's observations and
+        final verdict, :func:`~gfb_env.envs.monitor_reward.recompute_rewards` gives every reward).
+        ``ValueError`` on a v1 id (its reward reads the true plant)."""
+        if self.interface is None:
+            raise ValueError("public_reward_config: a v1 id's reward reads the true plant; use a -v2 id")
+        if self._public_reward is None:
+            self._public_reward = self.interface.reward_config(self)
+        return self._public_reward
 
     # ---- the privileged channel (issue 19; gfb_env.envs.privileged, docs/envs.md) ---------------
     def hidden(self) -> HiddenParameters:
@@ -491,6 +518,7 @@ class GFBEnv(gym.Env):
             balance_grade_mm_s=grade,
             command=setup.command,
             task_hidden=dict(setup.hidden) if setup.hidden else {},
+            interface=self.interface.new_episode() if self.interface is not None else None,
         )
         return self._emit()
 
@@ -534,7 +562,7 @@ class GFBEnv(gym.Env):
         bearing_number, foil_damping = self._command(a)
         kick = self._maybe_kick()
         integ = self._integ
-        lam0 = integ.bearing_number
+        lam0, tau0, theta0 = integ.bearing_number, integ.tau, integ.rotation_angle
         self._schedule_shocks()
         call: PreparedCall | None = None
         failure: Exception | None = None
@@ -555,6 +583,8 @@ class GFBEnv(gym.Env):
             integrator=integ,
             call=call,
             failure=failure,
+            tau_start=tau0,
+            rotation_angle_start=theta0,
         )
         self._pending = plan
         return plan
@@ -570,6 +600,7 @@ class GFBEnv(gym.Env):
         self._pending = None
         out, trace = self._plant_outcome(plan.bearing_number_start, result)
         self._judge(out, trace, plan.action, plan.action_sanitised, plan.disturbance)
+        self._ep.record_start = (plan.tau_start, plan.rotation_angle_start, plan.bearing_number_start)
         obs, info = self._emit()
         return obs, self._ep.reward, self._ep.done, False, info
 
@@ -633,18 +664,18 @@ class GFBEnv(gym.Env):
             amp = _whirl_amplitude(tr.tau, tr.xi, tr.eta)
             min_h = float(res.min_film_thickness)
             xr, er = res.xi_range, res.eta_range
-            orbit = (tr.xi, tr.eta)
+            orbit, orbit_tau = (tr.xi, tr.eta), tr.tau
         except NUMERICAL_FAILURES:
             failure = True
             amp, min_h = math.nan, math.nan
             xr = er = (math.nan, math.nan)
-            orbit = ep.orbit
+            orbit, orbit_tau = ep.orbit, None
         if not math.isfinite(amp):
             amp = 0.5 * max(_span(xr), _span(er)) if math.isfinite(_span(xr) + _span(er)) else 0.0
         if not math.isfinite(min_h):
             min_h = ep.model.min_film_thickness(integ.state)
         out = StepOutcome(lam0, integ.bearing_number, integ.foil_damping, amp, min_h, touchdown, failure)
-        return out, PlantTrace(xr, er, orbit, steps)
+        return out, PlantTrace(xr, er, orbit, steps, orbit_tau)
 
     def _schedule_shocks(self) -> None:
         """Random base shocks starting in this control step (drawn from ``self.np_random``; none and no
@@ -672,13 +703,16 @@ class GFBEnv(gym.Env):
         )
         success = objective.judge(ce, out, stable, ep.step, self._certified_plant())
         terms = objective.reward_terms(ce, out)
-        ep.reward_terms = terms
-        ep.reward = float(sum(terms.values()))
-        ep.episode_return += ep.reward
+        if self.interface is None:
+            ep.reward_terms = terms
+            ep.reward = float(sum(terms.values()))
+            ep.episode_return += ep.reward
+        else:  # the v1 terms are the judge's truth (privileged); the reward is the interface's (emit)
+            ep.interface.truth_reward_terms = terms
         ep.step += 1
         ep.xi_range, ep.eta_range = trace.xi_range, trace.eta_range
         ep.whirl_amplitude, ep.min_film_thickness = out.whirl_amplitude, out.min_film_thickness
-        ep.orbit = trace.orbit
+        ep.orbit, ep.orbit_tau = trace.orbit, trace.orbit_tau
         ep.integrator_steps += trace.integrator_steps
         ep.history.append(self._integ.tau, out.bearing_number, out.foil_damping, out.whirl_amplitude)
         ep.last_action, ep.action_sanitised, ep.disturbance = a, sanitised, kick
@@ -696,16 +730,26 @@ class GFBEnv(gym.Env):
         ep = self._ep
         g, (dmin, dmax) = ep.actuator.gain, self.damping_range
         known = ep.command.best is not None or self._best_point_is_cached()
+        b = ep.bearing
         return CertifiedPlant(
             ep.model,
             self._integ.state,
             (g * dmin, g * dmax),
             self.best_stable_operating_point if known else None,
+            shocks=ep.shock_schedule,
+            time_s=b.seconds(self._integ.tau),
+            step_s=b.seconds(self.control_interval),
+            step_tau=self.control_interval,
         )
 
     # ---- emit ---------------------------------------------------------------------------------
     def _emit(self) -> tuple[np.ndarray, dict]:
         """The observation (from the sensors; NaN/inf -> 0, clipped, float32) and the info."""
+        if self.interface is not None:
+            obs, info = self.interface.emit(self)
+            if self.render_mode == "human":
+                self.render()
+            return obs, info
         raw, info = self._raw_observation(), self._info()
         if self.render_mode == "human":
             self.render()
@@ -740,6 +784,9 @@ class GFBEnv(gym.Env):
         obs[OBS_DAMPING] = self.actions.action_from_damping(self._integ.foil_damping / ep.actuator.gain)
         own = self.objective.observation(ep.command, ep.step, self.speed_scale_rpm)
         extra = self._extra_observation()
+        if self.interface is not None:  # after the taps, before the task's and the objective's entries
+            mon = self.interface.observation(self)
+            return np.concatenate([obs, mon, own] if extra is None else [obs, mon, extra, own])
         return np.concatenate([obs, own] if extra is None else [obs, extra, own])
 
     def _add_sensor_errors(self, obs: np.ndarray, xi: float, eta: float) -> None:
@@ -750,7 +797,9 @@ class GFBEnv(gym.Env):
         ep, nb = self._ep, self.nominal_bearing
         c_um = ep.bearing.clearance_m * 1e6
         probes = self.proximity_probes
-        if probes.is_ideal:
+        if self.interface is not None:  # v2: one draw of per-sample readings serves every channel
+            self.interface.read_probes(self, obs, xi, eta)
+        elif probes.is_ideal:
             ep.probe_readings_um = np.array(probes.read_um(xi * c_um, eta * c_um, ep.probe_bias_um))
         else:
             cnom_um = nb.clearance_m * 1e6

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
@@ -74,6 +75,13 @@ class StabilityCertificate:
         )
         if isinstance(self.hold_steps, bool) or not isinstance(self.hold_steps, int) or self.hold_steps < 1:
             raise ValueError(f"hold_steps must be a positive integer, got {self.hold_steps!r}")
+
+    def certify(
+        self, window_amplitudes: list[float], plant: Any, bearing_number: float, foil_damping: float
+    ) -> Certificate:
+        """:meth:`judge` of the objective's window and plant (a
+        :class:`~gfb_env.envs.commanded.CertifiedPlant`: its model and state)."""
+        return self.judge(window_amplitudes, plant.model, bearing_number, foil_damping, plant.state)
 
     def judge(
         self,

@@ -36,6 +36,7 @@ from gfb_env.envs.certify import (
     StabilityCertificate,
     below_best_stable_speed,
 )
+from gfb_env.envs.certify_v2 import AfterShockCertificate
 from gfb_env.envs.config import check_in, check_int, check_nonnegative, check_positive
 from gfb_env.envs.episode import StepOutcome
 from gfb_env.envs.rewards import CommandedSpeedReward
@@ -173,8 +174,11 @@ class CommandedObjective:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "episode_steps", check_int("episode_steps", self.episode_steps, 1, 100_000))
-        if not isinstance(self.certificate, StabilityCertificate):
-            raise ValueError(f"certificate must be a StabilityCertificate, got {self.certificate!r}")
+        if not isinstance(self.certificate, (StabilityCertificate, AfterShockCertificate)):
+            raise ValueError(
+                "certificate must be a StabilityCertificate or an AfterShockCertificate, got "
+                f"{self.certificate!r}"
+            )
         object.__setattr__(
             self,
             "target_tolerance",
@@ -223,9 +227,7 @@ class CommandedObjective:
         if out.touchdown or out.solver_failure:
             ce.certificate = Certificate(False, "not_judged", math.nan)
             return False
-        ce.certificate = self.certificate.judge(
-            ce.amplitudes, plant.model, out.bearing_number, out.foil_damping, plant.state
-        )
+        ce.certificate = self.certificate.certify(ce.amplitudes, plant, out.bearing_number, out.foil_damping)
         ce.success = ce.certificate.certified and self._speed_reached(ce, plant)
         return ce.success
 
@@ -293,12 +295,19 @@ class CertifiedPlant:
         achievable_damping: ``[g D_min, g D_max]``, the actual damping the actuator can set.
         best_point: the episode's exact best stable point where it is known or cheap (a fixed plant's,
             cached), else None (the success is then decided by one stability test).
+        shocks: every base shock of the episode so far (:class:`~gfb_env.machine.ShockEvent`);
+            time_s: the time at the horizon, s; step_s, step_tau: one control step in s and in tau (for
+            the v2 certificate's shock window, :class:`~gfb_env.envs.certify_v2.AfterShockCertificate`).
     """
 
     model: GFBModel
     state: np.ndarray
     achievable_damping: tuple[float, float]
     best_point: Callable[[], BestStablePoint] | None
+    shocks: tuple = ()
+    time_s: float = math.nan
+    step_s: float = math.nan
+    step_tau: float = math.nan
 
 
 @dataclass

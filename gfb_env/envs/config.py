@@ -136,6 +136,11 @@ class EnvConfig:
             :meth:`~gfb_env.envs.base.GFBEnv.privileged_quantities`) at every reset and step; default
             False (for oracles, teacher-student training and debugging: a benchmarked policy must not
             read it; ``docs/envs.md``, "Information contract").
+        interface: the information interface (None: v1's observation, reward, costs and info; the v2
+            ids pass a :class:`~gfb_env.envs.interface_v2.MonitorInterface`: the vibration monitor's
+            observation, the reward and costs from the measurements, the sensor-only info).
+        raw_probe_samples: (v2 only) put the step's measured probe samples under
+            ``info["probe_samples"]``; default False (nothing is computed then).
     """
 
     grid: Grid = field(default_factory=lambda: Grid.parse(DEFAULT_GRID))
@@ -160,6 +165,8 @@ class EnvConfig:
     shock_arrivals: ShockArrivals = field(default_factory=ShockArrivals.none)
     rotor_balance: RotorBalance = field(default_factory=RotorBalance.perfect)
     privileged_info: bool = False
+    interface: Any = None
+    raw_probe_samples: bool = False
 
     def __post_init__(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -209,6 +216,13 @@ class EnvConfig:
         put("shock_arrivals", component("shock_arrivals", ShockArrivals, self.shock_arrivals))
         put("rotor_balance", component("rotor_balance", RotorBalance, self.rotor_balance))
         put("privileged_info", check_bool("privileged_info", self.privileged_info))
+        from gfb_env.envs.interface_v2 import MonitorInterface  # the interface imports this module
+
+        if self.interface is not None and not isinstance(self.interface, MonitorInterface):
+            raise ValueError(f"interface must be a MonitorInterface or None, got {self.interface!r}")
+        put("raw_probe_samples", check_bool("raw_probe_samples", self.raw_probe_samples))
+        if self.raw_probe_samples and self.interface is None:
+            raise ValueError("raw_probe_samples needs the v2 interface (a -v2 id); v1 has no sample record")
         if self.shock_arrivals.rate_per_s > 0 and self.disturbance_probability > 0:
             raise ValueError(
                 "shock_arrivals and disturbance_probability > 0 exclude each other: physical shocks replace "

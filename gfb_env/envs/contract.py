@@ -8,11 +8,16 @@ Every key a task's ``info`` may hold is in one class (:class:`InfoClass`):
 * ``PUBLIC``: the task's public configuration (a constant of the registered id);
 * ``GROUND_TRUTH``: a hidden draw, the true (noise-free) state or a quantity of the judge computed from
   the true plant (whirl amplitude, film thickness, the certificate, the reward's terms, the costs);
-* ``PRIVILEGED``: the opt-in channel itself (``info["privileged"]``, only with ``privileged_info=True``).
+* ``PRIVILEGED``: the opt-in channel itself (``info["privileged"]``, only with ``privileged_info=True``);
+* ``VERDICT``: the judge's verdict on the true plant, in the **final step's** info only (v2:
+  ``certified``, ``is_success``, ``termination_reason``).  It is ground truth, but it leaks nothing a
+  policy can use: the episode is over when it is revealed (as any task's success signal is), and the
+  next episode draws a new plant.  The v2 reward's terminal terms pay on it, so it must be given for
+  the reward to be recomputed (:func:`~gfb_env.envs.monitor_reward.recompute_rewards`).
 
 The v1 ids leak: their ``info`` holds GROUND_TRUTH keys at every reset and step (kept bit for bit for
-the published v1 results; :func:`leaked_ground_truth` lists them).  The v2 ids of issue 19 must hold
-none.  A key that is in no class fails :func:`unclassified_keys` (a test walks whole episodes of every
+the published v1 results; :func:`leaked_ground_truth` lists them).  The v2 ids hold none (tested).
+A key that is in no class fails :func:`unclassified_keys` (a test walks whole episodes of every
 id), so a new key must be classified here before it ships.
 
 Where a key's class depends on the task it says so: on RunUpRandomized-v1 the clearance is drawn, so
@@ -48,6 +53,7 @@ class InfoClass(enum.StrEnum):
     PUBLIC = "public"
     GROUND_TRUTH = "ground_truth"
     PRIVILEGED = "privileged"
+    VERDICT = "verdict"
 
 
 @dataclass(frozen=True)
@@ -147,12 +153,49 @@ _WHIRL_RECOVERY_V1 = {
     "whirl_speed_rpm": InfoEntry(P, "the start's speed in rpm: a task constant"),
 }
 
+V = InfoClass.VERDICT
+
+#: the keys of every v2 task (:mod:`gfb_env.envs.interface_v2`): no GROUND_TRUTH key
+_V2: dict[str, InfoEntry] = {
+    "step": InfoEntry(S, "control steps taken (the count of actions)"),
+    "steps_left": InfoEntry(S, "episode_steps - step (observation entry -1)"),
+    "episode_steps": InfoEntry(P, "the horizon"),
+    "speed_rpm": InfoEntry(S, "the motor speed (observation entry 6)"),
+    "speed_command_rpm": InfoEntry(S, "the command, observed (observation entry -2)"),
+    "reference_speed_rpm": InfoEntry(P, "n_ref of the reward's speed progress: a task constant in rpm"),
+    "damping_indicated": InfoEntry(S, "the actuator's indicated D_W (observation entry 7, decoded)"),
+    "probe_x_um": InfoEntry(S, "the X probe's last reading (noisy, biased)"),
+    "probe_y_um": InfoEntry(S, "the Y probe's last reading (noisy, biased)"),
+    "action_applied": InfoEntry(S, "the sanitised action"),
+    "action_sanitised": InfoEntry(S, "whether the action was mended (a function of the action)"),
+    "touchdown": InfoEntry(S, "a rub is audible and the episode ends: an event the machine reports"),
+    "monitor_alarm": InfoEntry(S, "the monitor's direct pk-pk above the alarm level (the observation's)"),
+    "monitor": InfoEntry(S, "the vibration monitor's reading of the measured samples, um and degrees"),
+    "reward_speed": InfoEntry(S, "0.1 p while A_meas <= 0.05 C_nom: the observation's entries"),
+    "reward_whirl": InfoEntry(S, "-0.5 min(A_meas, 1.5), A_meas from the observation's monitor entries"),
+    "reward_certified_speed": InfoEntry(S, "final step: 50 x the window mean of the observed p if certified"),
+    "reward_on_target": InfoEntry(S, "final step: 25 on success (the final verdict, revealed at the end)"),
+    "reward_touchdown": InfoEntry(S, "-100 on touchdown / solver failure (the episode ends early)"),
+    "cost": InfoEntry(S, "max of the cost terms (measured alarm, touchdown)"),
+    "cost_alarm": InfoEntry(S, "the measured direct pk-pk of a probe above 0.30 C_nom"),
+    "cost_touchdown": InfoEntry(S, "touchdown or solver failure: observable (the episode ends early)"),
+    "episode_cost": InfoEntry(S, "the sum of the costs"),
+    "certified": InfoEntry(V, "final step only: the certificate of the true plant (the episode is over)"),
+    "is_success": InfoEntry(V, "final step only: certified and on target (the episode is over)"),
+    "termination_reason": InfoEntry(V, "final step only: success / horizon / touchdown / solver_failure"),
+    "probe_samples": InfoEntry(S, "raw_probe_samples=True only: the step's measured samples and key angles"),
+    "privileged": InfoEntry(InfoClass.PRIVILEGED, "the opt-in channel (privileged_info=True only)"),
+}
+
 #: registered id -> {info key -> :class:`InfoEntry`} (read-only)
 INFO_CONTRACT: Mapping[str, Mapping[str, InfoEntry]] = MappingProxyType(
     {
         "gfb_env/RunUp-v1": MappingProxyType(_RUN_UP_V1),
         "gfb_env/RunUpRandomized-v1": MappingProxyType(_RUN_UP_RANDOMIZED_V1),
         "gfb_env/WhirlRecovery-v1": MappingProxyType(_WHIRL_RECOVERY_V1),
+        "gfb_env/RunUp-v2": MappingProxyType(_V2),
+        "gfb_env/RunUpRandomized-v2": MappingProxyType(_V2),
+        "gfb_env/WhirlRecovery-v2": MappingProxyType(_V2),
     }
 )
 

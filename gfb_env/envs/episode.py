@@ -125,6 +125,11 @@ class Episode:
             ideal probes); tap_errors_kpa: the taps' errors of the last observation, kPa (None: ideal);
             observation_noise_draw: the legacy additive noise of the last observation (None: none).
             Kept references of what the observation computes anyway, for the privileged channel.
+        orbit_tau: the times (tau) of ``orbit``'s samples (None: no record, e.g. a failed step).
+        record_start: (tau, rotation angle theta, Lambda) at the last step's start (the key of the v2
+            vibration monitor).
+        interface: the information interface's state of the episode (None on v1;
+            :class:`~gfb_env.envs.interface_v2.InterfaceEpisode` on v2).
     """
 
     model: GFBModel
@@ -161,6 +166,9 @@ class Episode:
     probe_errors: Any = None
     tap_errors_kpa: np.ndarray | None = None
     observation_noise_draw: np.ndarray | None = None
+    orbit_tau: np.ndarray | None = None
+    record_start: tuple[float, float, float] = (math.nan, 0.0, math.nan)
+    interface: Any = None
 
     @property
     def done(self) -> bool:

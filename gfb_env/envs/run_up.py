@@ -48,9 +48,14 @@ def commanded_objective(
     """The objective of a task: its horizon, tolerance, reward and costs (an instance, a dict of fields
     over the defaults, or None: the defaults; ``default_costs``: the task's), and the certificate of
     the configuration's ``stable_amplitude`` over its ``hold_steps``."""
+    certificate = (
+        StabilityCertificate(config.stable_amplitude, config.hold_steps)
+        if config.interface is None
+        else config.interface.certificate(config.stable_amplitude, config.hold_steps)
+    )
     return CommandedObjective(
         episode_steps=episode_steps,
-        certificate=StabilityCertificate(config.stable_amplitude, config.hold_steps),
+        certificate=certificate,
         target_tolerance=target_tolerance,
         reward=as_component("reward", CommandedSpeedReward, reward),
         costs=as_component("costs", CostSpec, costs, default_costs),
@@ -213,6 +218,11 @@ class RunUpEnv(GFBEnv):
         if not (self.start_bearing_number < lo * self.constants["lambda_best"] and hi <= 1.5):
             raise ValueError(f"command_fraction_range must lie above the start speed and <= 1.5, got {r!r}")
         self.command_fraction_range = (lo, hi)
+
+    @property
+    def reference_speed_rpm(self) -> float:
+        """The public speed where the progress p is zero (rpm): the start speed (a task constant)."""
+        return self.start_speed_rpm
 
     def _default_start_speed_rpm(self) -> float:
         """27 000 rpm: Lambda_0 = 0.450 for the nominal bearing, stable for every damping."""

@@ -118,6 +118,12 @@ class WhirlRecoveryEnv(GFBEnv):
         )
         self.reference_bearing_number = self.reference_fraction * float(self.constants["lambda_best"])
 
+    @property
+    def reference_speed_rpm(self) -> float:
+        """The public speed where the progress p is zero (rpm): ``reference_fraction`` x lambda_best of
+        the nominal bearing (a task constant)."""
+        return self.nominal_bearing.speed_rpm_at(self.reference_bearing_number)
+
     def _setup_episode(self, options) -> EpisodeSetup:
         """The machine was running at Lambda_w with the nominal map's optimum commanded (d_opt); its
         actual damping is g d_opt with the hidden gain g (drawn first), the start state the stored whirl

@@ -177,13 +177,36 @@ class ProximityProbes:
         n = len(xi_um)
         if n < 1:
             raise ValueError("measurement_errors needs at least one sample")
-        inv = np.linalg.inv(self.directions)
-        bias_xe = inv @ np.asarray(bias_um, dtype=float)
         if self.noise_um == 0.0:
-            zero = np.zeros(2)
-            return ProbeErrors(bias_xe, zero, zero.copy(), zero.copy())
+            return self.errors_of_noise(None, xi_um, eta_um, sample_interval_s, bias_um)
         m = max(n, self.velocity_window)
         noise = self.noise_um * rng.standard_normal((m, 2))  # rows: samples, columns: X, Y
+        return self.errors_of_noise(noise, xi_um, eta_um, sample_interval_s, bias_um)
+
+    def errors_of_noise(
+        self,
+        noise: np.ndarray | None,
+        xi_um: np.ndarray,
+        eta_um: np.ndarray,
+        sample_interval_s: float,
+        bias_um: np.ndarray,
+    ) -> ProbeErrors:
+        """:meth:`measurement_errors` for a given draw ``noise`` (rows: the ``max(n, velocity_window)``
+        samples, the last ``n`` those of the record; columns X, Y; um; None: noise-free probes).  One
+        draw then serves every channel: the v2 interface takes the same noise for the vibration
+        monitor's sample readings (:mod:`gfb_env.envs.interface_v2`)."""
+        xi_um, eta_um = np.asarray(xi_um, dtype=float), np.asarray(eta_um, dtype=float)
+        n = len(xi_um)
+        inv = np.linalg.inv(self.directions)
+        bias_xe = inv @ np.asarray(bias_um, dtype=float)
+        if noise is None:
+            zero = np.zeros(2)
+            return ProbeErrors(bias_xe, zero, zero.copy(), zero.copy())
+        m = len(noise)
+        if m != max(n, self.velocity_window) or noise.shape != (m, 2):
+            raise ValueError(
+                f"noise must have shape ({max(n, self.velocity_window)}, 2), got {np.shape(noise)}"
+            )
         noise_xe = noise @ inv.T  # the same noise in the (xi, eta) frame
         # extent: (max - min) of the measured samples minus that of the true ones
         tail = noise_xe[m - n :]

@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
-from gfb_env.envs import ENV_IDS, RunUpEnv, WhirlRecoveryEnv
+from gfb_env.envs import ENV_IDS, V2_ENV_IDS, RunUpEnv, WhirlRecoveryEnv
 from gfb_env.envs.base import _whirl_amplitude
 
 # short control steps keep the tests fast; the physics is the default one
@@ -40,7 +40,7 @@ def _rollout(env: gym.Env, actions, seed: int | None):
 
 
 # ------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", (*ENV_IDS, *V2_ENV_IDS))
 def test_gymnasium_check_env(env_id):
     from gymnasium.utils.env_checker import check_env
 
@@ -49,7 +49,7 @@ def test_gymnasium_check_env(env_id):
     env.close()
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", (*ENV_IDS, *V2_ENV_IDS))
 def test_sb3_check_env(env_id):
     from stable_baselines3.common.env_checker import check_env
 
@@ -94,7 +94,7 @@ def test_sb3_subproc_vec_env():
 
 
 # ------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", (*ENV_IDS, *V2_ENV_IDS))
 def test_seeded_determinism(env_id):
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1, 1, size=(5, 2)).astype(np.float32)
@@ -146,12 +146,12 @@ _action = st.tuples(st.one_of(st.floats(-1, 1), _extreme), st.one_of(st.floats(-
 
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
-    env_index=st.integers(0, len(ENV_IDS) - 1),
+    env_index=st.integers(0, len(ENV_IDS) + len(V2_ENV_IDS) - 1),
     actions=st.lists(_action, min_size=1, max_size=6),
     seed=st.integers(0, 2**16),
 )
 def test_random_and_extreme_actions(env_index, actions, seed):
-    env = _make(ENV_IDS[env_index], max_episode_steps=len(actions))
+    env = _make((*ENV_IDS, *V2_ENV_IDS)[env_index], max_episode_steps=len(actions))
     obs, info = env.reset(seed=seed)
     assert env.observation_space.contains(obs)
     ended = False

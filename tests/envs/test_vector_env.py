@@ -11,7 +11,7 @@ from conftest import same_value
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
-from gfb_env.envs import ENV_IDS, GFBVectorEnv
+from gfb_env.envs import ENV_IDS, V2_ENV_IDS, GFBVectorEnv
 from gfb_env.envs.episode import TerminationReason
 from gfb_env.integrator import IntegrationError
 
@@ -59,7 +59,7 @@ def _actions(rng: np.random.Generator, n: int = N) -> np.ndarray:
 
 
 def test_make_vec_returns_the_native_vector_env_for_every_task():
-    for env_id in ENV_IDS:
+    for env_id in (*ENV_IDS, *V2_ENV_IDS):
         envs = gym.make_vec(env_id, num_envs=2, **FAST)  # no mode: the registered vector_entry_point
         assert isinstance(envs, GFBVectorEnv) and envs.num_envs == 2
         assert envs.metadata["autoreset_mode"] is AutoresetMode.NEXT_STEP
@@ -73,8 +73,14 @@ def test_make_vec_returns_the_native_vector_env_for_every_task():
 
 @pytest.mark.parametrize(
     "env_id, disturbances",
-    [*((i, {}) for i in ENV_IDS), ("gfb_env/RunUp-v1", KICKS)],
-    ids=[*ENV_IDS, "gfb_env/RunUp-v1-kicks"],
+    [
+        *((i, {}) for i in ENV_IDS),
+        ("gfb_env/RunUp-v1", KICKS),
+        *((i, {"raw_probe_samples": True}) for i in V2_ENV_IDS),
+        # v2 episodes that end at their horizon (the final step's verdict keys, the certificate)
+        ("gfb_env/WhirlRecovery-v2", {"episode_steps": 2, "hold_steps": 2}),
+    ],
+    ids=[*ENV_IDS, "gfb_env/RunUp-v1-kicks", *V2_ENV_IDS, "gfb_env/WhirlRecovery-v2-horizon"],
 )
 def test_native_vector_env_is_sync_vector_env_bit_for_bit(env_id, disturbances):
     """Whole episodes with autoresets (time limit 3), disturbances, noisy sensors, bad actions, a seeded

@@ -22,7 +22,16 @@ def test_the_audit_writes_the_leak_tables_and_finds_no_contract_violation(tmp_pa
         )
         assert f"## {env_id}" in md and "| `damping_gain` |" in md
     assert "clearance_um" in report["gfb_env/RunUpRandomized-v1"]["equal_to_a_hidden_parameter"]
-    assert "## gfb_env/RunUp-v1" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "## gfb_env/RunUp-v1" in printed and "## gfb_env/RunUp-v2" in printed
+    # the v2 ids: no ground truth, nothing equal to a hidden draw, every key listed
+    v2 = json.loads((out / "v2.json").read_text())
+    assert set(v2) == {"gfb_env/RunUp-v2", "gfb_env/RunUpRandomized-v2", "gfb_env/WhirlRecovery-v2"}
+    for r in v2.values():
+        assert r["ground_truth_leaks"] == [] and r["equal_to_a_hidden_parameter"] == []
+        assert r["unclassified"] == [] and r["verdict_before_the_final_step"] == []
+        assert {"monitor", "probe_samples", "reward_whirl", "cost"} <= set(r["keys"])
+    assert "**0 GROUND_TRUTH**" in (out / "v2.md").read_text()
 
 
 def test_a_bad_out_is_refused_in_one_line_before_any_work(tmp_path, capsys):

@@ -29,6 +29,8 @@ from gfb_env.integrator import TrapezoidalIntegrator
 
 __all__ = [
     "ROTOR_ENTRIES",
+    "STEP_ENTRIES",
+    "FirstStepUpdate",
     "ResetSensorModel",
     "WhirlStartTable",
     "reset_log_likelihood",
@@ -195,3 +197,224 @@ def reset_log_likelihood(
     wts[[0, -1]] = 0.5
     top = a.max(axis=1, keepdims=True)
     return top[:, 0] + np.log(np.exp(a - top) @ wts / wts.sum())
+
+
+#: the first control step's entries that the update reads (by name, as the reset's)
+STEP_ENTRIES = ("xi", "eta", "xi_dot", "eta_dot", "xi_extent", "eta_extent")
+
+
+class FirstStepUpdate:
+    """The likelihood of the reset observation *and* the first control step's over ``g``: a particle
+    update through the exact first step.
+
+    The plant is deterministic between the reset and the first observation but for the residual
+    unbalance (unknown: its documented ISO grade range, any angle) and a rare base shock: for each gain
+    of the table the ``phases_per_gain`` phases that fit the reset best are integrated over the step with
+    the speed and the indicated damping the first observation reports (actual = g x indicated: the
+    actuator's lag acts on ``ln D_W``, the same for every g).  The unbalance enters linearly (its response
+    at the best particle, per unit vector), marginalised with its prior's second moment; the probes' and
+    taps' per-episode biases are shared by both observations (a joint Gaussian); a shock in the step is a
+    broad outlier component of probability ``outlier``.  Only gains whose reset likelihood lies within
+    ``reset_cut`` (log) of the best get particles (the others keep the outlier branch: ~e^-12 of the
+    best).  The step's conditional likelihood is tempered by ``temper``: with the unbalance linearised
+    and the phases discrete it was ~2x too sharp (validation seeds), and the posterior's grid (0.027 in
+    ln g) is coarser than its width.  Measured in docs/agents.md.
+    """
+
+    def __init__(
+        self,
+        env,
+        table: WhirlStartTable,
+        phases_per_gain: int = 3,
+        outlier: float = 0.01,
+        temper: float = 0.25,
+        reset_cut: float = 12.0,
+    ):
+        u = getattr(env, "unwrapped", env)
+        self.table = table
+        self.reset_sensors = ResetSensorModel.from_env(u)
+        self.k = int(phases_per_gain)
+        if self.k < 1 or not 0.0 < outlier < 1.0:
+            raise ValueError(f"phases_per_gain must be >= 1 and outlier in (0, 1), got {self.k}, {outlier}")
+        self.outlier = float(outlier)
+        if not (0.0 < temper <= 1.0 and reset_cut > 0.0):
+            raise ValueError(f"temper must be in (0, 1] and reset_cut > 0, got {temper}, {reset_cut}")
+        self.temper, self.reset_cut = float(temper), float(reset_cut)
+        self.model = viscoelastic_model(u.grid, u.nominal_bearing)
+        n_taps = int(u.n_pressure_probes)
+        self.idx = self.model.layout.midplane_probe_indices(n_taps)
+        self.state0 = np.asarray(u.constants["whirl"]["state"], dtype=float)
+        self.lam, self.d0 = float(u.whirl_bearing_number), float(u.whirl_damping)
+        self.control_interval, self.record_interval = float(u.control_interval), float(u.record_interval)
+        self.touchdown, self.options = float(u.touchdown_film_thickness), u.config.integrator
+        self.names1 = (*STEP_ENTRIES, *(f"pressure_{k}" for k in range(n_taps)))
+        self.cov, self.offset1 = self._joint_errors(u, n_taps)
+        self.unbalance_var = _unbalance_second_moment(u)
+
+    # -- the sensors ----------------------------------------------------------------------------
+    def _joint_errors(self, u, n_taps: int) -> tuple[np.ndarray, np.ndarray]:
+        """Covariance of the errors of (reset entries, first-step entries), and the step's offset."""
+        nb = u.nominal_bearing
+        c_um = nb.clearance_m * 1e6
+        probes, taps = u.proximity_probes, u.pressure_taps
+        r0 = self.reset_sensors
+        n0, n1 = len(r0.names), len(self.names1)
+        cov = np.zeros((n0 + n1, n0 + n1))
+        cov[:n0, :n0] = r0.covariance
+        # the step: position and velocity as at the reset (bias + the last sample; the window's slope)
+        cov[n0 : n0 + 4, n0 : n0 + 4] = r0.covariance[:4, :4]
+        ext_mean, ext_var = _extent_errors(probes, c_um, self.record_interval, self.control_interval)
+        cov[n0 + 4, n0 + 4] = cov[n0 + 5, n0 + 5] = ext_var
+        kpa = 1e3 / nb.ambient_pressure_pa
+        cov[n0 + 6 :, n0 + 6 :] = np.eye(n_taps) * (taps.noise_kpa**2 + taps.bias_spread_kpa**2) * kpa**2
+        cov[n0 + 6 :, n0 + 6 :] += np.eye(n_taps) * float(u.observation_noise) ** 2
+        cov[n0 + 4 : n0 + 6, n0 + 4 : n0 + 6] += np.eye(2) * float(u.observation_noise) ** 2
+        cov[n0 : n0 + 4, n0 : n0 + 4] += np.eye(4) * float(u.observation_noise) ** 2
+        # shared between the two observations: the probes' and the taps' per-episode biases
+        inv = np.linalg.inv(probes.directions)
+        shared_p = (probes.bias_spread_um / c_um) ** 2 * (inv @ inv.T)
+        cov[0:2, n0 : n0 + 2] = cov[n0 : n0 + 2, 0:2] = shared_p
+        shared_t = np.eye(n_taps) * taps.bias_spread_kpa**2 * kpa**2
+        cov[4:n0, n0 + 6 :] = cov[n0 + 6 :, 4:n0] = shared_t
+        offset = np.zeros(n1)
+        offset[:2] = r0.offset[:2]
+        offset[4:6] = ext_mean
+        offset[6:] = r0.offset[4:]
+        return cov, offset
+
+    # -- the plant --------------------------------------------------------------------------------
+    def _integrator(self, state: np.ndarray, d: float) -> TrapezoidalIntegrator:
+        return TrapezoidalIntegrator(
+            self.model, state, self.lam, d, touchdown_film_thickness=self.touchdown, options=self.options
+        )
+
+    def _step(self, state: np.ndarray, g: float, lam1: float, d_ind1: float, unbalance=None) -> np.ndarray:
+        """The first step's noise-free entries from the start ``state`` (NaN if the plant failed)."""
+        integ = self._integrator(state, g * self.d0)
+        if unbalance is not None:
+            integ.set_unbalance(unbalance)
+        try:
+            res = integ.advance(
+                self.control_interval, lam1, g * d_ind1, record_interval=self.record_interval,
+                record_indices=self.idx, raise_on_failure=False,
+            )  # fmt: skip
+        except (FloatingPointError, np.linalg.LinAlgError):
+            return np.full(len(self.names1), np.nan)
+        if not res.ok or res.touchdown is not None:
+            return np.full(len(self.names1), np.nan)
+        s = integ.state
+        xi, eta, xd, ed = self.model.layout.rotor(s)
+        return np.r_[
+            xi,
+            eta,
+            xd,
+            ed,
+            res.xi_range[1] - res.xi_range[0],
+            res.eta_range[1] - res.eta_range[0],
+            s[self.idx],
+        ]
+
+    def log_likelihood(
+        self, values0: np.ndarray, values1: np.ndarray, lam1: float, d_ind1: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``(ln p(obs_0, obs_1 | g), ln p(obs_0 | g))`` on the table's gains: ``values0`` the reset's
+        entries ``table.names``, ``values1`` the first step's ``names1``, ``lam1`` and ``d_ind1`` the
+        bearing number and indicated damping the first observation reports."""
+        from gfb_env.forcing import Unbalance
+
+        tab, r0s = self.table, self.reset_sensors
+        v0, v1 = np.asarray(values0, dtype=float), np.asarray(values1, dtype=float)
+        res0 = v0[None, None, :] - r0s.offset - tab.mean  # (n_g, n_phase, n0)
+        prec0 = np.linalg.inv(r0s.covariance)
+        q0 = np.einsum("gpi,ij,gpj->gp", res0, prec0, res0)
+        ll_reset = reset_log_likelihood(tab, r0s, v0)
+        n_g = len(tab.gains)
+        best = np.argsort(q0, axis=1)[:, : self.k]  # (n_g, k) phase indices
+        pred = np.full((n_g, self.k, len(self.names1)), np.nan)
+        starts: dict[tuple[int, int], np.ndarray] = {}
+        live = ll_reset >= ll_reset.max() - self.reset_cut
+        for i, g in enumerate(tab.gains):
+            if not live[i]:
+                continue
+            integ = self._integrator(self.state0, g * self.d0)
+            for j in sorted(best[i]):
+                ph = float(tab.phases[j])
+                if ph > integ.tau:
+                    integ.advance(ph)
+                starts[(i, j)] = integ.state.copy()
+        for i, g in enumerate(tab.gains):
+            if not live[i]:
+                continue
+            for n, j in enumerate(best[i]):
+                pred[i, n] = self._step(starts[(i, j)], float(g), lam1, d_ind1)
+        # the unbalance's response (per unit vector) at the particle that fits the reset best
+        fit = np.where(np.isfinite(pred[..., 0]), np.take_along_axis(q0, best, axis=1), np.inf)
+        i0, n0_ = np.unravel_index(int(np.argmin(fit)), fit.shape)
+        j0, g0 = int(best[i0, n0_]), float(tab.gains[i0])
+        eps = 0.01
+        jac = np.column_stack(
+            [
+                (self._step(starts[(i0, j0)], g0, lam1, d_ind1, Unbalance(eps, a)) - pred[i0, n0_]) / eps
+                for a in (0.0, 0.5 * math.pi)
+            ]
+        )
+        n0 = len(r0s.names)
+        cov = self.cov.copy()
+        if np.all(np.isfinite(jac)):
+            cov[n0:, n0:] += self.unbalance_var * (jac @ jac.T)
+        prec = np.linalg.inv(cov)
+        _, logdet = np.linalg.slogdet(cov)
+        r1 = v1[None, None, :] - self.offset1 - pred  # (n_g, k, n1)
+        r = np.concatenate([res0[np.arange(n_g)[:, None], best], r1], axis=2)
+        q = np.einsum("gki,ij,gkj->gk", r, prec, r)
+        a = np.where(np.isfinite(q), -0.5 * q, -np.inf)
+        top = np.max(a, axis=1, keepdims=True)
+        top = np.where(np.isfinite(top), top, 0.0)
+        # per gain: the sum over its phases, on the reset likelihood's scale (the same phase weights)
+        ll_joint = top[:, 0] + np.log(np.sum(np.exp(a - top), axis=1) + 1e-300) - math.log(len(tab.phases))
+        ll_joint = ll_joint - 0.5 * logdet
+        # the reset likelihood on the same normalisation (its own covariance); the step's conditional
+        # (tempered) against a broad density for a shock in the step
+        _, logdet0 = np.linalg.slogdet(r0s.covariance)
+        ll_reset_n = ll_reset - 0.5 * logdet0
+        broad = -len(self.names1) * math.log(2.0)  # anything within ~2 (2 pi omitted, as elsewhere)
+        cond = np.where(live & np.isfinite(ll_joint), ll_joint - ll_reset_n, -np.inf)
+        ll = ll_reset_n + np.logaddexp(
+            math.log(1 - self.outlier) + self.temper * cond, math.log(self.outlier) + broad
+        )
+        return ll, ll_reset
+
+
+def _extent_errors(
+    probes, c_um: float, record_interval: float, control_interval: float
+) -> tuple[float, float]:
+    """Mean and variance (C^2) of the extent's error of one step on a whirl-sized orbit (Monte Carlo of
+    the documented probe model, seeded: the same numbers every time)."""
+    if probes.noise_um == 0.0:
+        return 0.0, 1e-12
+    n = int(round(control_interval / record_interval))
+    t = np.arange(1, n + 1) * record_interval
+    xi = 0.5 * c_um * np.cos(2 * math.pi * t / 25.6)
+    eta = 0.5 * c_um * np.sin(2 * math.pi * t / 25.6)
+    rng = np.random.default_rng(0)
+    e = np.array([probes.measurement_errors(rng, xi, eta, 1.0, np.zeros(2)).extent_um for _ in range(400)])
+    e = e.ravel() / c_um
+    return float(e.mean()), float(e.var()) + 1e-12
+
+
+def _unbalance_second_moment(u) -> float:
+    """``E[U^2] / 2`` (per component) of the residual unbalance the env's documented ``rotor_balance``
+    draws (ISO grade log-uniform; 0 for a perfectly balanced rotor)."""
+    rb = u.config.rotor_balance
+    lo, hi = getattr(rb, "grade_range_mm_s", (0.0, 0.0)) or (0.0, 0.0)
+    if hi <= 0.0:
+        return 0.0
+    from gfb_env.forcing import Unbalance
+
+    ref = rb.reference_speed_rpm or u.speed_range_rpm[1]
+    u_hi = Unbalance.from_iso1940(u.nominal_bearing, hi, ref).magnitude
+    if hi == lo:
+        return 0.5 * u_hi**2
+    # U proportional to G, G log-uniform: E[G^2] = (hi^2 - lo^2) / (2 ln(hi / lo))
+    m2 = (hi**2 - lo**2) / (2 * math.log(hi / lo)) * (u_hi / hi) ** 2
+    return 0.5 * m2

@@ -123,6 +123,10 @@ class RecoveryAgent(MarginSearchAgent):
             self._survived(m)
         return self._dispatch(obs, rpm, m)
 
+    def _wants_probe(self, m: RecoveryMemory) -> bool:
+        """Whether the unbalance probe follows the dip (this rule: whenever g is uncertain at all)."""
+        return bool(self.unbalance_dampings) and len(m.post.gains) > 1
+
     def _on_dip(self, obs: np.ndarray, rpm: float, m: RecoveryMemory) -> list[float]:
         """Decelerate at the motor limit while the whirl lasts; then probe (or run) in the same step."""
         env_ = self.spec.observations.envelope(obs)
@@ -132,7 +136,7 @@ class RecoveryAgent(MarginSearchAgent):
             return [-1.0, self.spec.damping_action(m.d_cmd)]
         m.meter.floor = 0.03
         m.meter.open_event(env_)  # the collapsing whirl's tail decays like a shock's transient
-        if self.unbalance_dampings and len(m.post.gains) > 1:
+        if self._wants_probe(m):
             m.mode = Mode.PROBE
             lam = self.probe_bearing_number(m, self._lam(m, rpm))
             m.probe_rpm = m.bearing.speed_rpm_at(lam)

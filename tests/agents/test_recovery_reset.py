@@ -10,6 +10,7 @@ import pytest
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_agents import ladder
 from gfb_agents.estimation.whirl_start import (
+    FirstStepUpdate,
     ResetSensorModel,
     reset_log_likelihood,
     whirl_start_table,
@@ -57,26 +58,33 @@ class PublicView:
         return getattr(object.__getattribute__(self, "_env"), name)
 
 
-def _posterior_mean_and_truth(pol, seed: int, env) -> tuple[float, float]:
-    """ln g's posterior mean after the rule's first step, and the truth (read for the test only)."""
+def _posterior_means_and_truth(pol, seed: int, env) -> tuple[float, float, float]:
+    """ln g's posterior mean after the rule's first decision (the reset observation) and after its
+    second (the first step's), and the truth (read for the test only)."""
     pol.reset()
     obs, _ = env.reset(seed=seed)
-    pol.predict(obs, episode_start=True)
+    a, _ = pol.predict(obs, episode_start=True)
     post = pol._mem[0].post
-    truth = np.log(env.unwrapped.hidden_parameters()["damping_gain"])
-    return float(post.weights @ np.log(post.gains)), float(truth)
+    m0 = float(post.weights @ np.log(post.gains))
+    obs, *_ = env.step(a)
+    pol.predict(obs)
+    m1 = float(post.weights @ np.log(post.gains))
+    return m0, m1, float(np.log(env.unwrapped.hidden_parameters()["damping_gain"]))
 
 
-def test_reset_posterior_is_much_sharper_than_the_prior():
+def test_posterior_is_much_sharper_than_the_prior_at_reset_and_sharper_still_after_one_step():
     """The posterior mean of ln g after the reset observation errs by far less than the prior's sd (a
-    rule that ignored the reset observation would keep the prior: its rms error ~0.3 on these draws)."""
+    rule that ignored the reset observation would keep the prior: its rms error ~0.3 on these draws),
+    and after the first step's particle update by less again."""
     env = gym.make(ENV)
     pol = ladder.build("recovery_reset", env)  # one rule: its stability table is computed once
-    mean, truth = np.array([_posterior_mean_and_truth(pol, s, env) for s in SEEDS]).T
-    err, prior_err = mean - truth, 0.5 * np.log(0.6 * 1.8) - truth
-    rms, rms_prior = float(np.sqrt(np.mean(err**2))), float(np.sqrt(np.mean(prior_err**2)))
+    m0, m1, truth = np.array([_posterior_means_and_truth(pol, s, env) for s in SEEDS]).T
+    err0, err1, prior_err = m0 - truth, m1 - truth, 0.5 * np.log(0.6 * 1.8) - truth
+    rms0, rms1 = float(np.sqrt(np.mean(err0**2))), float(np.sqrt(np.mean(err1**2)))
+    rms_prior = float(np.sqrt(np.mean(prior_err**2)))
     assert rms_prior > 0.2, rms_prior  # the draws are not all near the prior's centre
-    assert rms < 0.5 * PRIOR_SD and rms < 0.6 * rms_prior, (rms, rms_prior, err)
+    assert rms0 < 0.5 * PRIOR_SD and rms0 < 0.6 * rms_prior, (rms0, rms_prior, err0)
+    assert rms1 < 0.08 and rms1 < 0.7 * rms0, (rms1, rms0, err1)
     env.close()
 
 
@@ -110,27 +118,32 @@ def test_rule_reads_no_private_or_hidden_state_and_plays_a_whole_episode():
         k, done = k + 1, term or trunc
     assert k == 200 or term
     assert np.all(np.isfinite(pol.last_reset_log_likelihood))
+    assert np.all(np.isfinite(pol.last_first_step_log_likelihood))
     env.close()
 
 
 def test_rule_is_deterministic_with_the_seed():
-    """Two fresh envs and rules on one seed: the same actions, bit for bit."""
+    """Two fresh envs on one seed, the rule reset between them: the same actions, bit for bit (through
+    the reset's and the first step's updates and the dip)."""
+    env0 = gym.make(ENV)
+    pol = ladder.build("recovery_reset", env0)
     runs = []
     for _ in range(2):
         env = gym.make(ENV)
-        pol = ladder.build("recovery_reset", env)
         pol.reset()
         obs, _ = env.reset(seed=4)
         acts = []
-        for k in range(40):
+        for k in range(15):
             a, _ = pol.predict(obs, episode_start=(k == 0))
             acts.append(np.asarray(a, dtype=np.float64).copy())
             obs, _, term, trunc, _ = env.step(a)
             if term or trunc:
                 break
-        runs.append(np.array(acts))
+        runs.append((np.array(acts), pol._mem[0].post.log_w.copy()))
         env.close()
-    assert runs[0].shape == runs[1].shape and runs[0].tobytes() == runs[1].tobytes()
+    assert runs[0][0].shape == runs[1][0].shape and runs[0][0].tobytes() == runs[1][0].tobytes()
+    assert runs[0][1].tobytes() == runs[1][1].tobytes()
+    env0.close()
 
 
 def test_reset_entries_are_read_by_name():
@@ -139,6 +152,9 @@ def test_reset_entries_are_read_by_name():
     pol = ladder.build("recovery_reset", env)
     layout = env.unwrapped.observation_layout
     assert [layout.names[i] for i in pol._entries] == list(pol.start_table.names)
+    assert [layout.names[i] for i in pol._entries1] == list(pol.first_step.names1)
     with pytest.raises(ValueError, match="temper"):
         type(pol)(env.unwrapped, temper=0.0)
+    with pytest.raises(ValueError, match="phases_per_gain"):
+        FirstStepUpdate(env.unwrapped, pol.start_table, phases_per_gain=0)
     env.close()

@@ -230,7 +230,7 @@ _V1_RULES = (
         "recovery_reset",
         (_WR1,),
         _make_recovery_reset,
-        "recovery, its posterior over g started from the reset observation's likelihood",
+        "recovery, g from the reset observation and the first step's particle update; no probe if sharp",
     ),
 )
 

@@ -34,7 +34,8 @@ class RecoveryResetAgent(RecoveryAgent):
         first_step: also the first control step's particle update
             (:class:`~gfb_agents.estimation.whirl_start.FirstStepUpdate`).
         probe_sd: skip ``recovery``'s unbalance probe after the dip when the posterior sd of ``ln g`` is
-            below this (0: always probe, as ``recovery``).
+            below this (0: always probe, as ``recovery``; 0.06, set once before measuring: about twice
+            the first step's typical sd, 0.014-0.03, and half the reset's, 0.12).
         **kw: :class:`RecoveryAgent`'s.
     """
 
@@ -43,7 +44,7 @@ class RecoveryResetAgent(RecoveryAgent):
         env,
         temper: float = 1.0,
         first_step: bool = True,
-        probe_sd: float = 0.0,
+        probe_sd: float = 0.06,
         name: str = "recovery_reset",
         **kw,
     ):

@@ -158,3 +158,21 @@ def test_reset_entries_are_read_by_name():
     with pytest.raises(ValueError, match="phases_per_gain"):
         FirstStepUpdate(env.unwrapped, pol.start_table, phases_per_gain=0)
     env.close()
+
+
+def test_probe_is_skipped_only_when_the_posterior_is_sharp():
+    """After the dip the unbalance probe runs while the posterior sd of ln g is >= probe_sd (0.06), and
+    is skipped below; probe_sd = 0 probes always, as recovery."""
+    env = gym.make(ENV)
+    pol = ladder.build("recovery_reset", env)
+    m = pol._new_memory()
+    assert pol._wants_probe(m)  # the prior: sd 0.32
+    lg = np.log(m.post.gains)
+    m.post.log_w = -0.5 * ((lg - lg[20]) / 0.02) ** 2  # sd ~0.02
+    assert not pol._wants_probe(m)
+    m.post.log_w = -0.5 * ((lg - lg[20]) / 0.1) ** 2  # sd ~0.1
+    assert pol._wants_probe(m)
+    m.post.log_w = -0.5 * ((lg - lg[20]) / 0.02) ** 2
+    always = type(pol)(env.unwrapped, probe_sd=0.0, first_step=False)
+    assert always._wants_probe(m) and always.first_step is None
+    env.close()

@@ -89,20 +89,27 @@ def posterior_errors(n_reset: int, n_step: int, env_id: str = "gfb_env/WhirlReco
 
 
 def main(argv: list[str] | None = None) -> int:
-    import argparse
+    from pathlib import Path
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    from gfb_env.scripting import OneLineParser, check_output_dir
+
+    ap = OneLineParser(
+        prog="python -m gfb_experiments.whirl_start_check", description=__doc__.splitlines()[0]
+    )
     ap.add_argument("--episodes", type=int, default=200, help="validation seeds for the reset's error")
     ap.add_argument("--first-step", type=int, default=40, help="of them, for the first step's error")
     ap.add_argument("--out", default=None, help="also write the JSON here")
     a = ap.parse_args(argv)
     if not (1 <= a.episodes <= len(VALIDATION)) or not (0 <= a.first_step <= a.episodes):
         ap.error("--episodes must be >= 1 and --first-step in [0, --episodes]")
+    if a.out:  # before any episode: an unwritable --out fails now
+        try:
+            check_output_dir(str(Path(a.out).parent), "--out", files=(Path(a.out).name,))
+        except ValueError as exc:
+            ap.error(str(exc))
     res = posterior_errors(a.episodes, a.first_step)
     print(json.dumps(res))
     if a.out:
-        from pathlib import Path
-
         Path(a.out).parent.mkdir(parents=True, exist_ok=True)
         Path(a.out).write_text(json.dumps(res, indent=1) + "\n")
     return 0

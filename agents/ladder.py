@@ -182,6 +182,12 @@ def _make_recovery(env) -> Policy:
     return RecoveryAgent(getattr(env, "unwrapped", env))
 
 
+def _make_recovery_reset(env) -> Policy:
+    from gfb_agents.rules.recovery_reset import RecoveryResetAgent
+
+    return RecoveryResetAgent(getattr(env, "unwrapped", env))
+
+
 def make_commanded_oracle(env) -> Policy:
     """The v1 tasks' oracle (:class:`gfb_agents.oracles.commanded.CommandedOracle`)."""
     from gfb_agents.oracles.commanded import CommandedOracle
@@ -219,6 +225,12 @@ _V1_RULES = (
         (_WR1,),
         _make_recovery,
         "decelerate out of the whirl, estimate g, return below the estimated boundary",
+    ),
+    (
+        "recovery_reset",
+        (_WR1,),
+        _make_recovery_reset,
+        "recovery, g from the reset observation and the first step's particle update; no probe if sharp",
     ),
 )
 

@@ -34,10 +34,10 @@ class RecoveryAgent(MarginSearchAgent):
 
     * **Survival of the first steps.**  The start orbit (1.1 C) grows into a touchdown within two steps
       unless the actual damping lies in ``survival_window`` (``[1.2, 5.0]``: with ``d_opt`` commanded the
-      survivors had ``g`` in [0.58, 2.25], the touched-down ones outside [0.56, 2.2]).  No observation
-      before the first step tells ``g`` (the reset observation is one snapshot of the orbit), so the rule
-      commands the prior's best damping and, once alive after ``survival_steps`` steps, multiplies the
-      posterior by ``survival_odds`` outside the window.
+      survivors had ``g`` in [0.58, 2.25], the touched-down ones outside [0.56, 2.2]).  This rule ignores
+      the reset observation (which does tell ``g``: issue 19; :class:`~gfb_agents.rules.recovery_reset.
+      RecoveryResetAgent` reads it), so it commands the prior's best damping and, once alive after
+      ``survival_steps`` steps, multiplies the posterior by ``survival_odds`` outside the window.
     * **The unbalance probe** (:class:`UnbalanceProbe`) after the dip, at the highest speed where every
       plausible plant is stable at every probe damping with a decay of ``probe_growth_rate`` at least
       (below the dip's end), ``unbalance_samples`` observations per damping.
@@ -123,6 +123,10 @@ class RecoveryAgent(MarginSearchAgent):
             self._survived(m)
         return self._dispatch(obs, rpm, m)
 
+    def _wants_probe(self, m: RecoveryMemory) -> bool:
+        """Whether the unbalance probe follows the dip (this rule: whenever g is uncertain at all)."""
+        return bool(self.unbalance_dampings) and len(m.post.gains) > 1
+
     def _on_dip(self, obs: np.ndarray, rpm: float, m: RecoveryMemory) -> list[float]:
         """Decelerate at the motor limit while the whirl lasts; then probe (or run) in the same step."""
         env_ = self.spec.observations.envelope(obs)
@@ -132,7 +136,7 @@ class RecoveryAgent(MarginSearchAgent):
             return [-1.0, self.spec.damping_action(m.d_cmd)]
         m.meter.floor = 0.03
         m.meter.open_event(env_)  # the collapsing whirl's tail decays like a shock's transient
-        if self.unbalance_dampings and len(m.post.gains) > 1:
+        if self._wants_probe(m):
             m.mode = Mode.PROBE
             lam = self.probe_bearing_number(m, self._lam(m, rpm))
             m.probe_rpm = m.bearing.speed_rpm_at(lam)

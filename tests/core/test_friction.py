@@ -275,8 +275,10 @@ def test_finite_friction_critical_bearing_number_converges_in_eta_and_transients
     """mu_C = 0.3 (sliders partly at their limit, linearised on the slip branch): Lambda_c converges as the
     slip viscosity vanishes, lies between the free (K_W) and the stuck (K_W + K_T) foil, and a small
     rotor perturbation decays 0.01 below it and grows 0.01 above it."""
+    scan = {"history": "scan", "sliders_on_limit": "slip"}  # the default scan's history, slip branch
     lc = {
-        eta: critical_bearing_number(frictional(0.3, eta=eta)).critical_bearing_number for eta in (1e-3, 1e-5)
+        eta: critical_bearing_number(frictional(0.3, eta=eta), **scan).critical_bearing_number
+        for eta in (1e-3, 1e-5)
     }
     assert abs(lc[1e-3] - lc[1e-5]) < 1e-4
     stuck_lc = critical_bearing_number(

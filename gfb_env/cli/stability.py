@@ -122,6 +122,10 @@ def cmd_hysteresis(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     cp = _critical(args, model)
     d = cp.as_dict()
+    friction = friction_parameters(model)
+    d.update(friction)
+    if friction:
+        d.update(_frictional_definition(args))
     try:
         fr = fold_bearing_number(
             model,
@@ -165,6 +169,9 @@ def cmd_hysteresis(args: argparse.Namespace) -> int:
     else:
         lf = d["fold_bearing_number"]
         print(f"{cp.structure} foil, K_W={cp.foil_stiffness:.4g}, D_W={cp.foil_damping:.4g}, grid {cp.grid}")
+        if friction:
+            print("  " + ", ".join(f"{k}={v:.4g}" for k, v in friction.items()))
+            print(f"  equilibria: {d['equilibrium_history']}; sliders on their limit held")
         print(
             f"  Hopf point       Lambda_c    = {cp.critical_bearing_number:.5f} "
             f"({cp.critical_speed_rpm:.0f} rpm)"

@@ -47,6 +47,9 @@ __all__ = [
     "MAX_SCAN_POINTS",
     "linear_stability",
     "critical_bearing_number",
+    "SPINUP_STEP",
+    "spinup_equilibria",
+    "spinup_equilibrium",
 ]
 
 

@@ -90,10 +90,11 @@ def frozen_slider_critical(state: np.ndarray, lam_c: float, grid: str, half_widt
 def spinup_critical(model: GFBModel, step: float = SPINUP_STEP, start: float = 0.1, stop: float = 1.0):
     """Lambda_c along a monotone quasi-static spin-up: each equilibrium warm-started only from the previous
     (smaller) Lambda, so every slider sees the load path of a slow run-up; the crossing is interpolated
-    linearly in the growth rate between two steps.  Returns (Lambda_c, sliders held, state above)."""
+    linearly in the growth rate between two steps; sliders on their limit on the slip branch.
+    Returns (Lambda_c, sliders held, state above)."""
     s, prev = None, None
     for lam in np.arange(start, stop, step):
-        st = linear_stability(model, float(lam), guess=s)
+        st = linear_stability(model, float(lam), guess=s, sliders_on_limit="slip")
         s, g = st.state, st.growth_rate
         if prev is not None and prev[1] < 0 <= g:
             lc = prev[0] + (lam - prev[0]) * (-prev[1]) / (g - prev[1])
@@ -104,7 +105,9 @@ def spinup_critical(model: GFBModel, step: float = SPINUP_STEP, start: float = 0
 
 def onset(mu: float, grid: str, scan_step: float = 0.05) -> dict:
     m = frictional(mu, grid)
-    cp = critical_bearing_number(m, scan_step=scan_step, bearing_range=(0.1, 1.0))
+    cp = critical_bearing_number(
+        m, scan_step=scan_step, bearing_range=(0.1, 1.0), history="scan", sliders_on_limit="slip"
+    )
     cols = column_states(m, cp.state)
     st = np.array(cols["stuck"])
     load = np.array(cols["load"])

@@ -555,6 +555,36 @@ class GFBModel:
         stuck = np.diff(J.indptr)[foil] == 0
         return np.setdiff1d(np.arange(self.layout.size), foil[stuck])
 
+    def linearised_jacobian(
+        self, s: np.ndarray, bearing_number: float, foil_damping: float = 1.0, sliders_on_limit: str = "stick"
+    ) -> tuple[sp.csr_matrix, np.ndarray | None]:
+        """The Jacobian the linear stability analysis uses and the state indices it keeps (None: all).
+
+        Every structure but the frictional foil: ``(jacobian(s, ...), None)``.  Frictional foil, by where
+        a slider on its Coulomb limit ``|F| = F_c`` is linearised (the regularised law
+        ``eta S' = sign(F) max(|F| - F_c, 0)`` has one-sided slopes there: 0 inward, ``1/eta`` outward):
+
+        - ``"stick"`` (default): the inward slope.  A perturbation of amplitude ``a`` at a fixed
+          ``Lambda`` slips a slider on its limit by O(a) once, after which its force oscillates inside the
+          elastic range ``2 F_c``, much wider than ``a`` (shakedown): as ``a -> 0`` every slider with
+          ``F_c > 0`` is held.  So the Jacobian with the sliders held (``S' = 0``) and the slider states
+          dropped (each would add an exact zero eigenvalue, a neutral shift along the equilibria):
+          the stuck foil ``K_W + K_T`` with the sliders' offsets as a built-in deflection.  At
+          ``mu_C = 0`` (``F_c = 0`` in every column: no elastic range) the slider is free: as ``"slip"``.
+        - ``"slip"``: the outward slope, the tangent of a slider that a growing load keeps moving (the
+          quasi-static spin-up's load path); stuck sliders dropped (:meth:`linearised_states`)."""
+        if sliders_on_limit not in ("stick", "slip"):
+            raise ValueError(f"sliders_on_limit must be 'stick' or 'slip', got {sliders_on_limit!r}")
+        if self.structure is not Structure.FRICTIONAL:
+            return self.jacobian(s, bearing_number, foil_damping), None
+        if sliders_on_limit == "slip" or self.friction_coefficient == 0.0:
+            return self.jacobian(s, bearing_number, 1.0), self.linearised_states(s, bearing_number)
+        J = self.jacobian(s, bearing_number, 1.0, _args=self.kernel_args(1.0, True))
+        keep = np.setdiff1d(
+            np.arange(self.layout.size), np.arange(self.layout.n_pressure, self.layout.rotor_offset)
+        )
+        return J, keep
+
     def _slider_target(
         self, s: np.ndarray, slider_reference: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray]:

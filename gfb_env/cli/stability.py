@@ -75,6 +75,18 @@ def _critical(args, model):
         raise ValueError(str(exc)) from None
 
 
+def _frictional_definition(args: argparse.Namespace) -> dict[str, str]:
+    """What the frictional foil's Lambda_c refers to (:func:`critical_bearing_number`'s defaults)."""
+    from gfb_env.analysis.stability import SPINUP_STEP
+
+    return {
+        "equilibrium_history": (
+            f"quasi-static spin-up from Lambda={args.bearing_range[0]:g} in steps of {SPINUP_STEP:g}"
+        ),
+        "sliders_on_limit": "stick",
+    }
+
+
 def cmd_critical(args: argparse.Namespace) -> int:
     """Handler of ``gfb critical``."""
     model = _analysis_model(args)
@@ -84,12 +96,15 @@ def cmd_critical(args: argparse.Namespace) -> int:
     d["wall_time_s"] = time.perf_counter() - t0
     friction = friction_parameters(model)
     d.update(friction)
+    if friction:
+        d.update(_frictional_definition(args))
     if args.json:
         print(jsonio.dumps(d))
     else:
         print(f"{cp.structure} foil, K_W={cp.foil_stiffness:.4g}, D_W={cp.foil_damping:.4g}, grid {cp.grid}")
         if friction:
             print("  " + ", ".join(f"{k}={v:.4g}" for k, v in friction.items()))
+            print(f"  equilibria: {d['equilibrium_history']}; sliders on their limit held")
         print(f"  critical bearing number  Lambda_c = {cp.critical_bearing_number:.5f}")
         print(f"  critical speed                   = {cp.critical_speed_rpm:.0f} rpm")
         print(f"  whirl frequency ratio Im/Lambda  = {cp.whirl_frequency_ratio:.4f}")
@@ -107,6 +122,10 @@ def cmd_hysteresis(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     cp = _critical(args, model)
     d = cp.as_dict()
+    friction = friction_parameters(model)
+    d.update(friction)
+    if friction:
+        d.update(_frictional_definition(args))
     try:
         fr = fold_bearing_number(
             model,
@@ -150,6 +169,9 @@ def cmd_hysteresis(args: argparse.Namespace) -> int:
     else:
         lf = d["fold_bearing_number"]
         print(f"{cp.structure} foil, K_W={cp.foil_stiffness:.4g}, D_W={cp.foil_damping:.4g}, grid {cp.grid}")
+        if friction:
+            print("  " + ", ".join(f"{k}={v:.4g}" for k, v in friction.items()))
+            print(f"  equilibria: {d['equilibrium_history']}; sliders on their limit held")
         print(
             f"  Hopf point       Lambda_c    = {cp.critical_bearing_number:.5f} "
             f"({cp.critical_speed_rpm:.0f} rpm)"
@@ -250,7 +272,12 @@ def register(subparsers) -> None:
             "Critical bearing number Lambda_c: the equilibrium is solved along Lambda (warm-started\n"
             "Newton), the eigenvalues of the analytic Jacobian are computed, and the first crossing of\n"
             "max Re(lambda) = 0 above a stable equilibrium is bracketed by a scan and refined by Brent's\n"
-            "method to 1e-5 (paper Sect. 3.2, Fig. 4).\n\n"
+            "method to 1e-5 (paper Sect. 3.2, Fig. 4).\n"
+            "--structure frictional: the equilibria of a quasi-static spin-up from the range's lower end\n"
+            "(steps of 0.002, each from the previous one), sliders on their Coulomb limit held in the\n"
+            "linearisation (the small-perturbation limit; docs/analysis.md, Dry friction); JSON adds\n"
+            "stick_stiffness, friction_coefficient, slip_viscosity, equilibrium_history,\n"
+            "sliders_on_limit.\n\n"
             "JSON keys: critical_bearing_number, critical_speed_rpm, whirl_frequency_ratio\n"
             "(Im(lambda)/Lambda_c), eccentricity_at_onset, whirl_frequency, crossing_speed\n"
             "(dRe(lambda)/dLambda), structure, foil_stiffness, foil_damping, grid, evaluations,\n"

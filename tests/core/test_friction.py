@@ -242,6 +242,8 @@ _SPEED = {
     "critical": [],
     "simulate": ["--bearing-number", "0.6", "--duration", "5"],
     "equilibrium": ["--bearing-number", "0.6"],
+    "hysteresis": [],
+    "runup": ["--bearing-range", "0.55", "0.6"],
 }
 _BAD = [
     (["--structure", "frictional", "--stick-stiffness", "-1"], "--stick-stiffness", "positive"),
@@ -265,18 +267,45 @@ def test_cli_refuses_bad_friction_options(cmd, argv, option, fragment, tmp_path,
     from gfb_env.cli import main
 
     out = tmp_path / "out"
-    extra = ["--out", str(out)] if cmd == "simulate" else []
+    extra = ["--out", str(out)] if cmd in ("simulate", "runup") else []
     assert_refused_at_once(
         main, [cmd, *argv, "--grid", "21x5", *_SPEED[cmd], *extra], option, fragment, capsys, out
     )
+
+
+def test_cli_hysteresis_stuck_limit_is_the_elastic_foil_and_reports_the_friction(capsys):
+    """mu_C = 1e6 (stuck from the unloaded state): the elastic K_W + K_T = 1.5 foil's Hopf point and
+    contact bearing number (0.565238 and 0.446175 on 21x5, as `gfb hysteresis --structure elastic`)."""
+    from gfb_env.cli import main
+
+    argv = ["hysteresis", "--structure", "frictional", "--foil-stiffness", "1", "--stick-stiffness", "0.5"]
+    assert main([*argv, "--friction-coefficient", "1e6", "--grid", "21x5", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["critical_bearing_number"] == pytest.approx(0.565238, abs=1e-5)
+    assert d["contact_bearing_number"] == pytest.approx(0.446175, abs=1e-5)
+    assert d["friction_coefficient"] == 1e6 and d["stick_stiffness"] == 0.5
+    assert d["sliders_on_limit"] == "stick"
+
+
+def test_cli_runup_takes_the_frictional_foil(tmp_path, capsys):
+    from gfb_env.cli import main
+
+    argv = ["runup", "--structure", "frictional", "--friction-coefficient", "0.1", "--grid", "21x5"]
+    out = tmp_path / "r"
+    assert main([*argv, "--bearing-range", "0.5", "0.52", "--out", str(out), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["structure"] == "frictional" and d["status"] == "done"
+    assert (out / "summary.json").exists()
 
 
 def test_finite_friction_critical_bearing_number_converges_in_eta_and_transients_agree():
     """mu_C = 0.3 (sliders partly at their limit, linearised on the slip branch): Lambda_c converges as the
     slip viscosity vanishes, lies between the free (K_W) and the stuck (K_W + K_T) foil, and a small
     rotor perturbation decays 0.01 below it and grows 0.01 above it."""
+    scan = {"history": "scan", "sliders_on_limit": "slip"}  # the default scan's history, slip branch
     lc = {
-        eta: critical_bearing_number(frictional(0.3, eta=eta)).critical_bearing_number for eta in (1e-3, 1e-5)
+        eta: critical_bearing_number(frictional(0.3, eta=eta), **scan).critical_bearing_number
+        for eta in (1e-3, 1e-5)
     }
     assert abs(lc[1e-3] - lc[1e-5]) < 1e-4
     stuck_lc = critical_bearing_number(

@@ -70,6 +70,7 @@ __all__ = [
     "default_ladder",
     "LADDER",
     "V1_TASKS",
+    "V2_TASKS",
     "NAIVE_DAMPING",
     "NAIVE_MARGIN",
 ]
@@ -77,11 +78,13 @@ __all__ = [
 KINDS = ("naive", "rule", "oracle", "learned")
 
 try:  # the task list has one owner (the retired v0 ids are no task of the ladder)
-    from gfb_env.envs import ENV_IDS
+    from gfb_env.envs import ENV_IDS, V2_ENV_IDS
 
     V1_TASKS: tuple[str, ...] = tuple(t for t in ENV_IDS if t.endswith("-v1"))
+    #: the v2 ids (issue 19): the same plants with the information contract and the monitor's observation
+    V2_TASKS: tuple[str, ...] = tuple(V2_ENV_IDS)
 except ImportError:  # pragma: no cover - gfb_env is a dependency
-    V1_TASKS = ()
+    V1_TASKS = V2_TASKS = ()
 
 
 @dataclass(frozen=True)
@@ -200,6 +203,7 @@ LADDER: dict[str, AgentEntry] = {}
 _DEFAULTS_LOADED = False
 
 _RU1, _RUR1, _WR1 = "gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1"
+_WR2 = "gfb_env/WhirlRecovery-v2"
 #: the v1 rules (``docs/agents.md``) and the tasks each was written for
 _V1_RULES = (
     (
@@ -222,13 +226,13 @@ _V1_RULES = (
     ),
     (
         "recovery",
-        (_WR1,),
+        (_WR1, _WR2),
         _make_recovery,
         "decelerate out of the whirl, estimate g, return below the estimated boundary",
     ),
     (
         "recovery_reset",
-        (_WR1,),
+        (_WR1, _WR2),
         _make_recovery_reset,
         "recovery, g from the reset observation and the first step's particle update; no probe if sharp",
     ),
@@ -304,12 +308,14 @@ def scoped():
 def default_ladder() -> dict[str, AgentEntry]:
     """The built-in entries (module docstring), by name; learned ones from the committed policies."""
     out = [
-        AgentEntry("naive", "naive", V1_TASKS, make_naive, description="D_W = 1, motor limit, hold"),
+        AgentEntry(
+            "naive", "naive", V1_TASKS + V2_TASKS, make_naive, description="D_W = 1, motor limit, hold"
+        ),
         # a reference, kind "rule" since each task has one naive (the normalisation's 0 stays naive)
         AgentEntry(
             "hold",
             "rule",
-            V1_TASKS,
+            V1_TASKS + V2_TASKS,
             make_hold,
             description="reference (issue 19), not a controller: holds the start speed at D_W = 1",
         ),
@@ -321,7 +327,7 @@ def default_ladder() -> dict[str, AgentEntry]:
         AgentEntry(
             "oracle_v1",
             "oracle",
-            V1_TASKS,
+            V1_TASKS + V2_TASKS,
             make_commanded_oracle,
             description="knows g, the bearing and the exact lambda_best: D_opt/g, 1 % below min(cmd, best)",
         )

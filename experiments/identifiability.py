@@ -285,9 +285,9 @@ class RidgeCV:
         err = np.zeros(len(lams))
         for f in range(folds):
             tr, te = fold != f, fold == f
-            ytr = y[tr] - y[tr].mean()
-            for i, c in enumerate(self._solve(Z[tr], ytr, lams)):
-                err[i] += float(np.sum((Z[te] @ c + y[tr].mean() - y[te]) ** 2))
+            zm, ym = Z[tr].mean(axis=0), y[tr].mean()  # the fold's own centring (its intercept)
+            for i, c in enumerate(self._solve(Z[tr] - zm, y[tr] - ym, lams)):
+                err[i] += float(np.sum(((Z[te] - zm) @ c + ym - y[te]) ** 2))
         best = int(np.argmin(err))
         self.alpha, self.cv_rms = self.alphas[best], math.sqrt(err[best] / n)
         self.coef = self._solve(Z, y - self.y0, [lams[best]])[0]

@@ -22,9 +22,10 @@ Per task id (``--tasks``; any live id of :data:`gfb_env.envs.ENV_IDS`):
 * **Regressor** (:class:`RidgeCV`): ridge regression on standardised features (:class:`FeatureBuilder`:
   the rows of steps 0..k, their step-to-step differences, and the logarithm of every entry that is
   positive in all training episodes), the penalty chosen by 5-fold cross-validation on the training seeds
-  only.  Scored on the evaluation seeds: rms error and ``R^2 = 1 - mse / var_ref`` with ``var_ref`` the
-  documented prior's variance (ln g: log-uniform on the actuator's ``gain_range``; ln C: uniform C on
-  ``clearance_range_m``), else the training targets' variance (``reference`` in the JSON says which).
+  only; at prediction each feature is clipped to its training range (no extrapolation).  Scored on the
+  evaluation seeds: rms error and ``R^2 = 1 - mse / var_ref`` with ``var_ref`` the documented prior's
+  variance (ln g: log-uniform on the actuator's ``gain_range``; ln C: uniform C on ``clearance_range_m``),
+  else the training targets' variance (``reference`` in the JSON says which).
 * **The rule's own estimates** after ``k`` steps (``rule`` policy only): the posterior mean of ``ln g``
   (``rule.gain_posterior()``) and the identified clearance (``rule.bearing_estimate()``; before the
   identification the prior's mean of ln C), scored the same way.
@@ -228,6 +229,9 @@ class FeatureBuilder:
     def fit(self, rows: Sequence[np.ndarray]) -> FeatureBuilder:
         flat = np.array([self._raw(r)[0] for r in rows])
         self.log_mask = np.all(flat > 0, axis=0)
+        # an evaluation entry below every training value (e.g. 0 where training saw only positives) is
+        # logged at the training minimum: ln of a tiny number would be an extreme, unseen feature
+        self.log_floor = flat[:, self.log_mask].min(axis=0) if len(flat) else np.zeros(0)
         return self
 
     def transform(self, rows: Sequence[np.ndarray]) -> np.ndarray:
@@ -236,7 +240,7 @@ class FeatureBuilder:
         out = []
         for r in rows:
             flat, diff = self._raw(r)
-            logs = np.log(np.maximum(flat[self.log_mask], 1e-300))
+            logs = np.log(np.maximum(flat[self.log_mask], self.log_floor))
             out.append(np.r_[flat, diff, logs])
         return np.array(out)
 
@@ -276,6 +280,7 @@ class RidgeCV:
         self.mu, self.sd = X[:, self.keep].mean(axis=0), sd[self.keep]
         self.y0 = float(y.mean())
         Z = self._prep(X)
+        self.zlo, self.zhi = Z.min(axis=0), Z.max(axis=0)
         folds = max(2, min(self.folds, n))
         fold = np.arange(n) * folds // n
         lams = [a * n for a in self.alphas]
@@ -297,7 +302,9 @@ class RidgeCV:
         X = np.asarray(X, dtype=float)
         if self.coef.size == 0:
             return np.full(X.shape[0], self.y0)
-        return self._prep(X) @ self.coef + self.y0
+        # a linear model must not extrapolate: each feature clipped to its training range (an episode
+        # outside the training range then predicts like the nearest training ones)
+        return np.clip(self._prep(X), self.zlo, self.zhi) @ self.coef + self.y0
 
 
 # -- simulation ---------------------------------------------------------------------------------------
@@ -545,6 +552,14 @@ def _fmt(v: Any, nd: int = 3) -> str:
     return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{nd}f}"
 
 
+def _prior_rms(rep: dict[str, Any]) -> dict[str, float]:
+    """The no-information rms (the training mean as the prediction) of each target."""
+    out: dict[str, float] = {}
+    for r in rep["rows"]:
+        out.setdefault(r["target"], r["prior_rms"])
+    return out
+
+
 def summary_markdown(reports: Sequence[dict[str, Any]]) -> str:
     """The summary: per task the ln g table (task, policy, channel, k, rms, R^2, the rule's rms), then
     the other targets' rms."""
@@ -565,6 +580,10 @@ def summary_markdown(reports: Sequence[dict[str, Any]]) -> str:
             f"{rep['steps_simulated']} steps each; probe: {rep['policies']['probe']}; "
             f"rule: `{rep['policies']['rule']}`.  "
             + "; ".join(f"{t}: reference sd {math.sqrt(ref[t]['var']):.3f} ({ref[t]['source']})" for t in ref)
+            + "".join(
+                f"; predicting the training mean of {t} gives rms {pr:.3f} on these evaluation seeds"
+                for t, pr in _prior_rms(rep).items()
+            )
             + "".join(
                 f"; {t} is the same on every episode ({math.exp(v):.4g}: known from the public configuration)"
                 for t, v in rep.get("constant_targets", {}).items()
@@ -731,6 +750,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--rule", default=None, help="the ladder's rule for every task (default: the task's best)")
     p.add_argument("--jobs", type=int_range("--jobs", 1, 2), default=1, help="joblib workers (1 or 2)")
     p.add_argument("--out", default="results/identifiability", help="output folder")
+    p.add_argument(
+        "--summary-only",
+        action="store_true",
+        help="simulate nothing: remake summary.md and identifiability.png from the task JSONs in --out",
+    )
     a = p.parse_args(argv)
     names = [_file_name(t) for t in a.tasks] + ["summary.md", "identifiability.png"]
     try:
@@ -743,13 +767,15 @@ def main(argv: list[str] | None = None) -> int:
         if a.rule not in registered():
             p.error(f"--rule: no agent {a.rule!r} in the ladder")
     out.mkdir(parents=True, exist_ok=True)
-    for task in a.tasks:
+    for task in [] if a.summary_only else a.tasks:
         t0 = time.perf_counter()
         rep = analyse_task(task, a.ks, a.train, a.eval, a.policies, a.rule, a.jobs)
         rep["cost"]["total_s"] = time.perf_counter() - t0
         write_json(out / _file_name(task), rep)
         print(f"{task}: {rep['cost']['total_s']:.0f} s", flush=True)
     reps = _load_reports(out)
+    if not reps:
+        p.error(f"--out {a.out}: no task report (<task>.json) to summarise")
     text = summary_markdown(reps)
     (out / "summary.md").write_text(text + "\n")
     plot(reps, out / "identifiability.png")

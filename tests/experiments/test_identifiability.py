@@ -34,7 +34,8 @@ def _history(steps: int = 4, n_obs: int = 6, seed: int = 0, ended: int | None = 
 
 def test_the_ridge_recovers_a_known_linear_target():
     rng = np.random.default_rng(1)
-    X = rng.normal(size=(200, 8)) * np.array([1, 10, 0.1, 3, 1, 1, 1, 1])
+    # uniform features: the evaluation rows lie inside the training range (the regressor clips to it)
+    X = rng.uniform(-1, 1, size=(200, 8)) * np.array([1, 10, 0.1, 3, 1, 1, 1, 1])
     beta = np.array([0.5, -0.02, 4.0, 0.0, 0.0, 1.0, 0.0, 0.0])
     y = X @ beta + 2.0 + 0.01 * rng.normal(size=200)
     reg = RidgeCV().fit(X[:150], y[:150])
@@ -52,6 +53,19 @@ def test_the_ridge_shrinks_pure_noise_to_the_mean():
         pred = RidgeCV().fit(X, y).predict(rng.normal(size=(400, 300)))
         yn = rng.normal(size=400)
         assert np.sqrt(np.mean((pred - yn) ** 2)) < 1.15 * np.std(yn) and np.std(pred) < 0.3
+
+
+def test_the_ridge_does_not_extrapolate_and_the_logs_have_a_floor():
+    # an evaluation episode outside the training range (seen on WhirlRecovery-v1 under the rule, k = 20:
+    # rms 4.5 in ln g from unclipped features) predicts like the nearest training episodes
+    rng = np.random.default_rng(4)
+    X = rng.uniform(0, 1, (100, 2))
+    y = 3 * X[:, 0]
+    reg = RidgeCV().fit(X, y)
+    assert abs(reg.predict(np.array([[1e6, 0.5]]))[0] - 3.0) < 0.1
+    rows = [np.full((2, 1), 2.0), np.full((2, 1), 5.0)]
+    fb = FeatureBuilder(1).fit(rows)
+    assert np.allclose(fb.transform([np.zeros((2, 1))])[0, -2:], math.log(2.0))
 
 
 def test_constant_features_are_dropped_and_a_featureless_fit_predicts_the_mean():
@@ -132,6 +146,13 @@ def test_a_smoke_run_writes_the_report(tmp_path, capsys):
     assert "## gfb_env/WhirlRecovery-v1" in md and "| WhirlRecovery-v1 | rule | info | 1 |" in md
     assert (out / "identifiability.png").stat().st_size > 1000
     assert "WhirlRecovery-v1" in capsys.readouterr().out
+    # the summary remade from the JSONs alone (a later run on other ids adds its tasks to these)
+    (out / "summary.md").unlink()
+    assert main(["--summary-only", "--out", str(out)]) == 0
+    assert (out / "summary.md").read_text() == md
+    with pytest.raises(SystemExit) as exc:
+        main(["--summary-only", "--out", str(tmp_path / "empty")])
+    assert exc.value.code == 2 and "no task report" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

@@ -552,6 +552,12 @@ def _fmt(v: Any, nd: int = 3) -> str:
     return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{nd}f}"
 
 
+def _skill(rms: float, prior_rms: float) -> float:
+    """``1 - mse / mse_no_information`` on the evaluation seeds (R^2 against the sample's own spread: a
+    small evaluation set's spread differs from the prior's, e.g. sd 0.53 against 0.665)."""
+    return 1.0 - (rms / prior_rms) ** 2 if prior_rms > 0 else float("nan")
+
+
 def _prior_rms(rep: dict[str, Any]) -> dict[str, float]:
     """The no-information rms (the training mean as the prediction) of each target."""
     out: dict[str, float] = {}
@@ -568,7 +574,8 @@ def summary_markdown(reports: Sequence[dict[str, Any]]) -> str:
         "",
         "Made by `python -m gfb_experiments.identifiability` (docs/identifiability.md says how to read it).",
         "rms: error of a ridge regressor trained on training seeds, on the evaluation seeds; R^2 = 1 - mse /",
-        "the prior's variance; rule rms: the rule's own posterior mean after the same k steps.",
+        "the prior's variance; skill = 1 - mse / mse of the no-information prediction (the training mean) on",
+        "the same evaluation seeds; rule's rms: the rule's own posterior mean after the same k steps.",
         "",
     ]
     for rep in reports:
@@ -590,14 +597,15 @@ def summary_markdown(reports: Sequence[dict[str, Any]]) -> str:
             )
             + ".",
             "",
-            "| task | policy | channel | k | rms ln g | R^2 | rule's rms |",
-            "|---|---|---|---|---|---|---|",
+            "| task | policy | channel | k | rms ln g | R^2 | skill | rule's rms |",
+            "|---|---|---|---|---|---|---|---|",
         ]
         for r in rep["rows"]:
             if r["target"] == "ln_g":
                 lines.append(
                     f"| {rep['task'].split('/')[-1]} | {r['policy']} | {r['channel']} | {r['k']} | "
-                    f"{_fmt(r['rms'])} | {_fmt(r['r2'], 2)} | {_fmt(r.get('rule_rms'))} |"
+                    f"{_fmt(r['rms'])} | {_fmt(r['r2'], 2)} | {_fmt(_skill(r['rms'], r['prior_rms']), 2)} | "
+                    f"{_fmt(r.get('rule_rms'))} |"
                 )
         others = [t for t in rep["targets"] if t != "ln_g"]
         if others:

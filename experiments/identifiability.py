@@ -678,18 +678,23 @@ def plot(reports: Sequence[dict[str, Any]], path: Path) -> Path:
                     "k:",
                     marker="s",
                     ms=4,
-                    label=f"rule's posterior ({rep['policies']['rule']})",
+                    label="the rule's own posterior mean",
                 )
         sd = math.sqrt(rep["reference"]["ln_g"]["var"])
+        none = _prior_rms(rep)["ln_g"]
         ax.axhline(sd, color="gray", lw=0.8)
+        ax.axhline(none, color="gray", lw=0.8, ls="--")
         ax.text(0, sd, " prior sd", va="bottom", fontsize=7, color="gray")
+        ax.text(max(rep["ks"]), none, "no information ", va="bottom", ha="right", fontsize=7, color="gray")
         ax.set_xscale("symlog", linthresh=1)
         ax.set_xticks(rep["ks"])
         ax.set_xticklabels([str(k) for k in rep["ks"]])
-        ax.set_ylim(0, 1.15 * max(sd, max(r["rms"] for r in rows)))
+        ax.set_xlim(min(rep["ks"]) - 0.1, 1.1 * max(rep["ks"]))
+        top = 1.25 * max(sd, none)
+        ax.set_ylim(0, top)  # an rms above the no-information level is off the panel's top
         ax.set_xlabel("steps k")
         ax.set_ylabel("rms error of ln g (evaluation seeds)")
-        ax.set_title(rep["task"].split("/")[-1], fontsize=10)
+        ax.set_title(f"{rep['task'].split('/')[-1]} (rule: {rep['policies']['rule']})", fontsize=10)
     axes[0][0].legend(fontsize=6.5, loc="lower left")
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -175,3 +175,20 @@ def test_bad_arguments_are_refused_in_one_line(tmp_path, capsys, args, word):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and word in err[0]
     assert not (tmp_path / "o").exists()  # refused before any work
+
+
+def test_the_rules_posterior_accessors_read_the_episode_memory():
+    import gymnasium as gym
+
+    from gfb_agents.ladder import build
+
+    env = gym.make("gfb_env/WhirlRecovery-v1")
+    rule = build("recovery", env)
+    assert rule.gain_posterior() is None and rule.bearing_estimate() is None  # before the first step
+    obs, _ = env.reset(seed=5)
+    rule.predict(obs, episode_start=True)
+    post = rule.gain_posterior()
+    assert post is rule._mem[0].post and math.isclose(float(post.weights.sum()), 1.0)
+    assert post.gains.min() >= 0.6 - 1e-12 and post.gains.max() <= 1.8 + 1e-12  # the task's prior
+    assert rule.bearing_estimate() is None  # the nominal bearing: nothing to identify
+    env.close()

@@ -760,7 +760,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--train", type=int_range("--train", 5, 10_000), default=150, help="training episodes")
     p.add_argument("--eval", type=int_range("--eval", 2, 10_000), default=50, help="evaluation episodes")
     p.add_argument("--policies", type=_policy_list, default=list(POLICIES), help="probe,rule (default both)")
-    p.add_argument("--rule", default=None, help="the ladder's rule for every task (default: the task's best)")
+    p.add_argument(
+        "--rule",
+        action="append",
+        default=[],
+        metavar="[TASK=]NAME",
+        help="the ladder's rule for every task, or TASK=NAME for one (repeatable; default: recovery on "
+        "WhirlRecovery*, margin_search otherwise)",
+    )
     p.add_argument("--jobs", type=int_range("--jobs", 1, 2), default=1, help="joblib workers (1 or 2)")
     p.add_argument("--out", default="results/identifiability", help="output folder")
     p.add_argument(
@@ -774,15 +781,24 @@ def main(argv: list[str] | None = None) -> int:
         out = check_output_dir(a.out, "--out", names)
     except ValueError as exc:
         p.error(str(exc))
-    if a.rule is not None and "rule" in a.policies:
+    rules = {t: default_rule(t) for t in a.tasks}
+    for item in a.rule:
+        task, _, name = item.rpartition("=")
+        if task and task not in a.tasks:
+            p.error(f"--rule {item}: task {task!r} is not in --tasks")
+        for t in [task] if task else a.tasks:
+            rules[t] = name
+    if "rule" in a.policies:
         from gfb_agents.ladder import registered
 
-        if a.rule not in registered():
-            p.error(f"--rule: no agent {a.rule!r} in the ladder")
+        known = registered()
+        bad = [n for n in rules.values() if n not in known]
+        if bad:
+            p.error(f"--rule: no agent {bad[0]!r} in the ladder")
     out.mkdir(parents=True, exist_ok=True)
     for task in [] if a.summary_only else a.tasks:
         t0 = time.perf_counter()
-        rep = analyse_task(task, a.ks, a.train, a.eval, a.policies, a.rule, a.jobs)
+        rep = analyse_task(task, a.ks, a.train, a.eval, a.policies, rules[task], a.jobs)
         rep["cost"]["total_s"] = time.perf_counter() - t0
         write_json(out / _file_name(task), rep)
         print(f"{task}: {rep['cost']['total_s']:.0f} s", flush=True)

@@ -132,9 +132,11 @@ def test_the_probing_schedule_is_fixed_and_holds_its_last_block():
 def test_a_smoke_run_writes_the_report(tmp_path, capsys):
     out = tmp_path / "ident"
     args = ["--tasks", "gfb_env/WhirlRecovery-v1", "--ks", "0,1", "--train", "5", "--eval", "2"]
+    args += ["--rule", "gfb_env/WhirlRecovery-v1=recovery"]  # the default, named per task
     assert main([*args, "--out", str(out)]) == 0
     rep = json.loads((out / "WhirlRecovery-v1.json").read_text())
     assert rep["task"] == "gfb_env/WhirlRecovery-v1" and rep["ks"] == [0, 1]
+    assert rep["policies"]["rule"] == "recovery"
     assert rep["targets"] == ["ln_g"] and "ln_lambda_best" in rep["constant_targets"]
     assert math.isclose(rep["reference"]["ln_g"]["var"], math.log(3.0) ** 2 / 12)  # log-uniform [0.6, 1.8]
     keys = {(r["policy"], r["channel"], r["k"]) for r in rep["rows"]}
@@ -166,6 +168,8 @@ def test_a_smoke_run_writes_the_report(tmp_path, capsys):
         (["--jobs", "3"], "--jobs"),
         (["--policies", "probe,oracle"], "--policies"),
         (["--rule", "no_such_rule"], "--rule"),
+        (["--rule", "gfb_env/RunUp-v1=no_such_rule"], "--rule"),
+        (["--tasks", "gfb_env/RunUp-v1", "--rule", "gfb_env/WhirlRecovery-v1=recovery"], "not in --tasks"),
     ],
 )
 def test_bad_arguments_are_refused_in_one_line(tmp_path, capsys, args, word):

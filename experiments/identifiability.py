@@ -753,8 +753,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--tasks",
         type=_task_list,
-        default=[t for t in ENV_IDS if t.endswith("-v1")],
-        help="comma-separated task ids (default: the v1 ids)",
+        # once v1 is retired (issue 19) its ids leave ENV_IDS and the v2 ids are the default
+        default=[t for t in ENV_IDS if t.endswith("-v1")] or [t for t in ENV_IDS if t.endswith("-v2")],
+        help="comma-separated task ids (default: the v1 ids; the v2 ids once v1 is retired)",
     )
     p.add_argument("--ks", type=_k_list, default=list(DEFAULT_KS), help="steps k (default 0,1,5,20)")
     p.add_argument("--train", type=int_range("--train", 5, 10_000), default=150, help="training episodes")

@@ -257,6 +257,15 @@ class MarginSearchAgent(CommandedRule):
         if missing:  # pragma: no cover - a programming error of a subclass
             raise TypeError(f"{type(self).__name__} lacks the mode handlers {missing}")
 
+    # -- read-only views of an episode's estimates (the identifiability report reads them) ----------
+    def gain_posterior(self, env_index: int = 0) -> GainPosterior | None:
+        """The posterior over ``g`` of env ``env_index``'s episode so far (None before its first step)."""
+        return self._mem[env_index].post if env_index < len(self._mem) else None
+
+    def bearing_estimate(self, env_index: int = 0) -> BearingEstimate | None:
+        """The identified bearing of env ``env_index``'s episode (None: not identified yet, or nominal)."""
+        return self._mem[env_index].estimate if env_index < len(self._mem) else None
+
     # -- the plant's table --------------------------------------------------------------------
     def _nominal_table(self) -> StabilityTable:
         if "nominal" not in self._tables:

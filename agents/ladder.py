@@ -203,7 +203,7 @@ LADDER: dict[str, AgentEntry] = {}
 _DEFAULTS_LOADED = False
 
 _RU1, _RUR1, _WR1 = "gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1"
-_WR2 = "gfb_env/WhirlRecovery-v2"
+_RU2, _RUR2, _WR2 = "gfb_env/RunUp-v2", "gfb_env/RunUpRandomized-v2", "gfb_env/WhirlRecovery-v2"
 #: the v1 rules (``docs/agents.md``) and the tasks each was written for
 _V1_RULES = (
     (
@@ -220,7 +220,7 @@ _V1_RULES = (
     ),
     (
         "margin_search",
-        (_RU1, _RUR1),
+        (_RU1, _RUR1, _RU2, _RUR2),
         _make_margin_search,
         "identify, estimate g (unbalance probe, shock decays), best expected hold",
     ),

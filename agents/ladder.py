@@ -70,6 +70,7 @@ __all__ = [
     "default_ladder",
     "LADDER",
     "V1_TASKS",
+    "V2_RUNUP_TASKS",
     "NAIVE_DAMPING",
     "NAIVE_MARGIN",
 ]
@@ -176,6 +177,12 @@ def _make_margin_search(env) -> Policy:
     return MarginSearchAgent(getattr(env, "unwrapped", env))
 
 
+def _make_margin_search_1x(env) -> Policy:
+    from gfb_agents.rules.margin_search_1x import MarginSearch1xAgent
+
+    return MarginSearch1xAgent(getattr(env, "unwrapped", env))
+
+
 def _make_recovery(env) -> Policy:
     from gfb_agents.rules.recovery import RecoveryAgent
 
@@ -194,6 +201,9 @@ LADDER: dict[str, AgentEntry] = {}
 _DEFAULTS_LOADED = False
 
 _RU1, _RUR1, _WR1 = "gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1"
+#: the v2 run-up tasks (issue 19): the naive, hold, margin_search and the oracle play them as on v1
+_RU2, _RUR2 = "gfb_env/RunUp-v2", "gfb_env/RunUpRandomized-v2"
+V2_RUNUP_TASKS: tuple[str, ...] = (_RU2, _RUR2)
 #: the v1 rules (``docs/agents.md``) and the tasks each was written for
 _V1_RULES = (
     (
@@ -210,9 +220,15 @@ _V1_RULES = (
     ),
     (
         "margin_search",
-        (_RU1, _RUR1),
+        (_RU1, _RUR1, _RU2, _RUR2),
         _make_margin_search,
         "identify, estimate g (unbalance probe, shock decays), best expected hold",
+    ),
+    (
+        "margin_search_1x",
+        (_RU2, _RUR2),
+        _make_margin_search_1x,
+        "margin_search plus g from the monitor's 1x vector ratios between probe dampings (v2)",
     ),
     (
         "recovery",
@@ -292,12 +308,14 @@ def scoped():
 def default_ladder() -> dict[str, AgentEntry]:
     """The built-in entries (module docstring), by name; learned ones from the committed policies."""
     out = [
-        AgentEntry("naive", "naive", V1_TASKS, make_naive, description="D_W = 1, motor limit, hold"),
+        AgentEntry(
+            "naive", "naive", V1_TASKS + V2_RUNUP_TASKS, make_naive, description="D_W = 1, motor limit, hold"
+        ),
         # a reference, kind "rule" since each task has one naive (the normalisation's 0 stays naive)
         AgentEntry(
             "hold",
             "rule",
-            V1_TASKS,
+            V1_TASKS + V2_RUNUP_TASKS,
             make_hold,
             description="reference (issue 19), not a controller: holds the start speed at D_W = 1",
         ),
@@ -309,7 +327,7 @@ def default_ladder() -> dict[str, AgentEntry]:
         AgentEntry(
             "oracle_v1",
             "oracle",
-            V1_TASKS,
+            V1_TASKS + V2_RUNUP_TASKS,
             make_commanded_oracle,
             description="knows g, the bearing and the exact lambda_best: D_opt/g, 1 % below min(cmd, best)",
         )

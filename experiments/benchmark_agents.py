@@ -66,7 +66,7 @@ from gfb_agents.learned.evaluate import POLICIES_DIR, EpisodeResult, run_episode
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.seeds import MIN_TEST_EPISODES, SPLITS, split_seeds
 from gfb_env import jsonio
-from gfb_env.envs import ENV_IDS
+from gfb_env.envs import ENV_IDS, V2_ENV_IDS
 from gfb_env.scripting import OneLineParser, check_output_dir
 from gfb_env.sweeps import check_scheduler
 from gfb_experiments.benchmark_stats import (
@@ -81,6 +81,8 @@ from gfb_experiments.benchmark_stats import (
 )
 
 TASKS = ENV_IDS  # the task list has one owner
+#: the ids ``--tasks`` accepts: the default tasks and, named explicitly, the v2 ids (issue 19)
+KNOWN_TASKS = TASKS + tuple(t for t in V2_ENV_IDS if t not in TASKS)
 COLUMNS = [
     "task",
     "agent",
@@ -1005,12 +1007,12 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(str(exc))
     tasks = _names(ap, "--tasks", a.tasks) if a.tasks is not None else list(TASKS)
     for t in tasks:
-        if t not in TASKS:  # a registered id that is not a task (CartPole-v1) has no ladder
-            ap.error(f"--tasks: unknown task {t!r}; known: {', '.join(TASKS)}")
+        if t not in KNOWN_TASKS:  # a registered id that is not a task (CartPole-v1) has no ladder
+            ap.error(f"--tasks: unknown task {t!r}; known: {', '.join(KNOWN_TASKS)}")
     for t, kw in env_kwargs.items():
         # a known task outside --tasks is allowed (one JSON for several runs, --merge); a typo is not
-        if t not in TASKS:
-            ap.error(f"--env-kwargs: unknown task {t!r}; known: {', '.join(TASKS)}")
+        if t not in KNOWN_TASKS:
+            ap.error(f"--env-kwargs: unknown task {t!r}; known: {', '.join(KNOWN_TASKS)}")
         try:  # the env each chunk builds: bad keywords fail now, not in the first worker
             gym.make(t, **kw).close()
         except (TypeError, ValueError) as exc:
@@ -1102,7 +1104,7 @@ def _run(ap, a, tasks, episodes, chunk, env_kwargs, argv) -> int:
         paths = {**{k: v for k, v in old_paths.items() if k not in new}, **paths}
         if any(int(r["episodes"]) != episodes or r["split"] != a.split for r in rows):
             print("warning: merged rows have different episode counts or splits", file=sys.stderr)
-        order = {t: i for i, t in enumerate(TASKS)}
+        order = {t: i for i, t in enumerate(KNOWN_TASKS)}
         kinds = {k: i for i, k in enumerate(ladder_mod.KINDS)}
         rows.sort(key=lambda r: (order.get(r["task"], 99), kinds.get(r["kind"], 9), r["agent"]))
         if (out / "benchmark_agents.json").exists():

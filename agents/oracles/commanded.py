@@ -42,6 +42,9 @@ ORACLE_MARGIN = {
     "gfb_env/RunUp-v1": 0.01,
     "gfb_env/RunUpRandomized-v1": 0.01,
     "gfb_env/WhirlRecovery-v1": 0.01,
+    # v2 (issue 19): the same plants and judge's boundary as v1, so v1's margins
+    "gfb_env/RunUp-v2": 0.01,
+    "gfb_env/RunUpRandomized-v2": 0.01,
 }
 #: WhirlRecovery-v1: the true whirl amplitude (units of C) below which the oracle stops decelerating
 ORACLE_COLLAPSE_AMPLITUDE = 0.05

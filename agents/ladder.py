@@ -179,6 +179,12 @@ def _make_margin_search(env) -> Policy:
     return MarginSearchAgent(getattr(env, "unwrapped", env))
 
 
+def _make_margin_search_1x(env) -> Policy:
+    from gfb_agents.rules.margin_search_1x import MarginSearch1xAgent
+
+    return MarginSearch1xAgent(getattr(env, "unwrapped", env))
+
+
 def _make_recovery(env) -> Policy:
     from gfb_agents.rules.recovery import RecoveryAgent
 
@@ -223,6 +229,12 @@ _V1_RULES = (
         (_RU1, _RUR1, _RU2, _RUR2),
         _make_margin_search,
         "identify, estimate g (unbalance probe, shock decays), best expected hold",
+    ),
+    (
+        "margin_search_1x",
+        (_RU2, _RUR2),
+        _make_margin_search_1x,
+        "margin_search plus g from the monitor's 1x vector ratios between probe dampings (v2)",
     ),
     (
         "recovery",

@@ -1,7 +1,7 @@
 """Identifiability report (issue 19 s.3): how well the hidden quantities of a task can be inferred from the
 first ``k`` steps of its interface, per channel, against the rules' own posteriors.
 
-Per task id (``--tasks``; any live id of :data:`gfb_env.envs.ENV_IDS`):
+Per task id (``--tasks``; any live id of :data:`gfb_env.envs.ENV_IDS` or :data:`~gfb_env.envs.V2_ENV_IDS`):
 
 * **Targets** (from the privileged channel, for scoring only): ``ln_g`` (the hidden damping
   effectiveness, ``env.unwrapped.hidden_parameters()["damping_gain"]``), ``ln_lambda_best`` (the actual
@@ -56,9 +56,12 @@ import numpy as np
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_agents.policy import Policy
 from gfb_agents.seeds import TRAIN, VALIDATION
-from gfb_env.envs import ENV_IDS
+from gfb_env.envs import ENV_IDS, V2_ENV_IDS
 from gfb_env.envs.privileged import flatten_numbers
 from gfb_env.scripting import OneLineParser, check_output_dir, int_range, write_json
+
+#: the ids the report runs on: the v1 ids and the v2 ids of issue 19
+KNOWN_TASKS = (*ENV_IDS, *V2_ENV_IDS)
 
 __all__ = [
     "CHANNELS",
@@ -721,9 +724,10 @@ def _task_list(text: str) -> list[str]:
     tasks = [t.strip() for t in text.split(",") if t.strip()]
     if not tasks:
         raise argparse.ArgumentTypeError("--tasks must name at least one task id")
-    bad = [t for t in tasks if t not in ENV_IDS]
+    bad = [t for t in tasks if t not in KNOWN_TASKS]
     if bad:
-        raise argparse.ArgumentTypeError(f"--tasks: unknown task id {bad[0]!r}; known: {', '.join(ENV_IDS)}")
+        known = ", ".join(KNOWN_TASKS)
+        raise argparse.ArgumentTypeError(f"--tasks: unknown task id {bad[0]!r}; known: {known}")
     return tasks
 
 

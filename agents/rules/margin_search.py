@@ -366,7 +366,7 @@ class MarginSearchAgent(CommandedRule):
         else:
             pr.settle += 1
         if pr.settle > 2:  # the free transient of the damping change has decayed (>= 2 steps)
-            m.unb.add(d, m.k, obs)
+            self._probe_sample(m, d, obs)
             pr.n += 1
             if pr.n >= self.unbalance_samples:
                 pr.j, pr.n, pr.settle = pr.j + 1, 0, 0
@@ -378,6 +378,10 @@ class MarginSearchAgent(CommandedRule):
             self._finish_probe(m)
             return None
         return self.track(m, rpm, target), d
+
+    def _probe_sample(self, m: MarginSearchMemory, d: float, obs: np.ndarray) -> None:
+        """One settled sample of the probe at commanded damping ``d`` (a subclass may read more of it)."""
+        m.unb.add(d, m.k, obs)
 
     def _finish_probe(self, m: MarginSearchMemory) -> None:
         unb = m.unb

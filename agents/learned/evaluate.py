@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import math
 import pickle
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -339,6 +340,17 @@ class EpisodeResult:
     path_whirl: list[float] = field(default_factory=list)
 
 
+def _truth(u: Any, info: dict) -> Mapping[str, Any]:
+    """The judge's true quantities of the step: ``info["privileged"]`` where the env was made with
+    ``privileged_info=True``, v1's ``info`` (it carries them), else the env's privileged channel
+    (``env.unwrapped.privileged_quantities()``: a v2 id; the policy never sees it)."""
+    if "privileged" in info:
+        return info["privileged"]
+    if "whirl_amplitude" in info:
+        return info
+    return u.privileged_quantities()
+
+
 def run_episode(
     env: gym.Env, policy: Policy, seed: int, record_path: bool = False, max_steps: int | None = None
 ) -> EpisodeResult:
@@ -365,8 +377,8 @@ def run_episode(
     lam_t = info.get("target_bearing_number")
     tol = getattr(u, "target_tolerance", None)
     ret, steps, t_target, max_amp = 0.0, 0, math.nan, 0.0
-    # the judge's true quantities: v1's info, or a v2 id's opt-in channel (gym.make(id, privileged_info=True))
-    tru = info.get("privileged", info)
+    # the judge's true quantities: v1's info, or a v2 id's privileged channel (its info carries none)
+    tru = _truth(u, info)
     lams, dws, amps = [tru["bearing_number"]], [tru["foil_damping"]], [tru["whirl_amplitude"]]
     start = True
     terminated = truncated = False
@@ -385,7 +397,7 @@ def run_episode(
         if "cost" in info:
             has_cost = True
             cost += float(info["cost"])
-        tru = info.get("privileged", info)
+        tru = _truth(u, info)
         amp = float(tru["whirl_amplitude"])
         max_amp = max(max_amp, amp if math.isfinite(amp) else 0.0)
         if record_path:

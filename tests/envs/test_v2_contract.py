@@ -333,3 +333,22 @@ def test_same_seed_same_episode_and_snapshots_restore_exactly(env_id):
     for x, y in [*zip(ra, rb, strict=True), *zip(first, second, strict=True)]:
         assert np.array_equal(x[0], y[0]) and x[1:4] == y[1:4]
         assert x[4].keys() == y[4].keys() and all(same_value(x[4][k], y[4][k]) for k in x[4])
+
+
+def test_v2_info_speed_and_damping_are_the_observations_float32_values():
+    """Outside audit (2026-12-02): ``damping_indicated`` computed as D_actual / g in float64 carried the
+    rounding of the hidden gain (a replay of the public actuator matched every step for the true g only),
+    and the float64 speed the drawn clearance's. v2's info reports both as the observation carries them."""
+    env = gym.make("gfb_env/RunUp-v2")
+    u = env.unwrapped
+    obs, info = env.reset(seed=7_000_321)
+    differs = 0
+    for k in range(8):
+        obs, _, _, _, info = env.step(np.array([0.0, (-1.0) ** k * 0.37], dtype=np.float32))
+        lay = u.observation_layout
+        assert info["damping_indicated"] == u.actions.damping_from_action(float(obs[lay.damping]))
+        assert info["speed_rpm"] == float(obs[lay.speed]) * u.speed_scale_rpm
+        # the plant's float64 quotient is not what info reports (it would fail with the old code)
+        differs += info["damping_indicated"] != u._integ.foil_damping / u._ep.actuator.gain  # noqa: SLF001
+    assert differs > 0
+    env.close()

@@ -75,6 +75,7 @@ from gfb_env.integrator import (
     TrapezoidalIntegrator,
 )
 from gfb_env.machine import FoilDampingActuator, Motor, PressureTaps, ProximityProbes
+from gfb_env.machine.probes import ProbeErrors
 from gfb_env.model import GFBModel, Grid, Structure
 from gfb_env.params import BearingParameters
 
@@ -802,7 +803,6 @@ class GFBEnv(gym.Env):
         elif probes.is_ideal:
             ep.probe_readings_um = np.array(probes.read_um(xi * c_um, eta * c_um, ep.probe_bias_um))
         else:
-            cnom_um = nb.clearance_m * 1e6
             xs, es = ep.orbit
             if len(xs) == 0:  # a step that ended at once (touchdown in its first integrator step)
                 xs, es = np.array([xi]), np.array([eta])
@@ -813,9 +813,7 @@ class GFBEnv(gym.Env):
                 ep.bearing.seconds(self.record_interval),
                 ep.probe_bias_um,
             )
-            obs[[OBS_XI, OBS_ETA]] += err.position_um / cnom_um
-            obs[[OBS_XI_DOT, OBS_ETA_DOT]] += err.velocity_um_per_s * nb.time_scale_s / cnom_um
-            obs[[OBS_XI_EXTENT, OBS_ETA_EXTENT]] += err.extent_um / cnom_um
+            self._apply_probe_errors(obs, err)
             x, y = probes.read_um(xi * c_um, eta * c_um, ep.probe_bias_um)
             ep.probe_readings_um = np.array([x + err.noise_um[0], y + err.noise_um[1]])
             ep.probe_errors = err  # a reference, for the privileged channel
@@ -823,6 +821,15 @@ class GFBEnv(gym.Env):
             taps = self.pressure_taps.errors_kpa(self.np_random, ep.tap_bias_kpa)
             ep.tap_errors_kpa = taps
             obs[N_ROTOR_OBS:] += taps * (1e3 / nb.ambient_pressure_pa)
+
+    def _apply_probe_errors(self, obs: np.ndarray, err: ProbeErrors) -> None:
+        """Add a step's probe errors (um, um/s) to the rotor entries of ``obs`` (units of the nominal
+        C and C / T: the same for every drawn bearing)."""
+        nb = self.nominal_bearing
+        cnom_um = nb.clearance_m * 1e6
+        obs[[OBS_XI, OBS_ETA]] += err.position_um / cnom_um
+        obs[[OBS_XI_DOT, OBS_ETA_DOT]] += err.velocity_um_per_s * nb.time_scale_s / cnom_um
+        obs[[OBS_XI_EXTENT, OBS_ETA_EXTENT]] += err.extent_um / cnom_um
 
     def _info(self) -> dict:
         ep, integ, model = self._ep, self._integ, self._ep.model

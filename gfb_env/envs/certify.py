@@ -33,6 +33,7 @@ from gfb_env.model import GFBModel
 __all__ = [
     "Certificate",
     "StabilityCertificate",
+    "linear_certificate",
     "BestStablePoint",
     "best_stable_operating_point",
     "least_growth_rate",
@@ -98,14 +99,22 @@ class StabilityCertificate:
             math.isfinite(a) and a <= self.stable_amplitude for a in window
         ):
             return Certificate(False, "whirl_in_window", math.nan)
-        try:
-            st = linear_stability(model, bearing_number, foil_damping, guess=state)
-        except (EquilibriumError, FloatingPointError, np.linalg.LinAlgError):
-            return Certificate(False, "no_equilibrium", math.nan)
-        g = st.growth_rate
-        if not (math.isfinite(g) and g < 0.0):
-            return Certificate(False, "unstable_equilibrium", g)
-        return Certificate(True, "stable", g)
+        return linear_certificate(model, bearing_number, foil_damping, state)
+
+
+def linear_certificate(
+    model: GFBModel, bearing_number: float, foil_damping: float, state: np.ndarray
+) -> Certificate:
+    """The plant's half of every certificate: the static equilibrium of ``model`` at ``bearing_number``
+    with the actual ``foil_damping`` (warm-started from ``state``) must be linearly stable."""
+    try:
+        st = linear_stability(model, bearing_number, foil_damping, guess=state)
+    except (EquilibriumError, FloatingPointError, np.linalg.LinAlgError):
+        return Certificate(False, "no_equilibrium", math.nan)
+    g = st.growth_rate
+    if not (math.isfinite(g) and g < 0.0):
+        return Certificate(False, "unstable_equilibrium", g)
+    return Certificate(True, "stable", g)
 
 
 @dataclass(frozen=True)

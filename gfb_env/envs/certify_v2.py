@@ -39,10 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from gfb_env.analysis.stability import linear_stability
-from gfb_env.envs.certify import Certificate
-from gfb_env.envs.config import check_positive
-from gfb_env.equilibrium import EquilibriumError
+from gfb_env.envs.certify import Certificate, StabilityCertificate, linear_certificate
 
 __all__ = ["AfterShockCertificate"]
 
@@ -60,12 +57,8 @@ class AfterShockCertificate:
     stable_amplitude: float = 0.05
     hold_steps: int = 10
 
-    def __post_init__(self) -> None:
-        object.__setattr__(
-            self, "stable_amplitude", check_positive("stable_amplitude", self.stable_amplitude)
-        )
-        if isinstance(self.hold_steps, bool) or not isinstance(self.hold_steps, int) or self.hold_steps < 1:
-            raise ValueError(f"hold_steps must be a positive integer, got {self.hold_steps!r}")
+    # the same fields, checked the same way, as v1's certificate
+    __post_init__ = StabilityCertificate.__post_init__
 
     def certify(
         self, window_amplitudes: list[float], plant: Any, bearing_number: float, foil_damping: float
@@ -120,13 +113,10 @@ class AfterShockCertificate:
             ref = next((i for i in range(n) if start + i * step_s >= quiet - 1e-9 * step_s), None)
             if ref is not None and window[-1] > max(stable, window[ref]):
                 return Certificate(False, "whirl_growing_after_shock", math.nan)
-        try:
-            st = linear_stability(model, bearing_number, foil_damping, guess=state)
-        except (EquilibriumError, FloatingPointError, np.linalg.LinAlgError):
-            return Certificate(False, "no_equilibrium", math.nan)
-        g = st.growth_rate
-        if not (math.isfinite(g) and g < 0.0):
-            return Certificate(False, "unstable_equilibrium", g)
+        verdict = linear_certificate(model, bearing_number, foil_damping, state)
+        g = verdict.growth_rate
+        if not verdict.certified:
+            return verdict
         if ref is not None:
             decayed = stable + window[ref] * math.exp(g * (n - 1 - ref) * step_tau)
             if window[-1] > decayed:

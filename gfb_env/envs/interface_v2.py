@@ -70,12 +70,6 @@ from gfb_env.envs.monitor_reward import (
 )
 from gfb_env.envs.units import (
     EXTENT_BOUND,
-    OBS_ETA,
-    OBS_ETA_DOT,
-    OBS_ETA_EXTENT,
-    OBS_XI,
-    OBS_XI_DOT,
-    OBS_XI_EXTENT,
 )
 from gfb_env.machine import VibrationMonitor
 from gfb_env.machine.monitor import MonitorReading, keyphasor_angles
@@ -189,23 +183,19 @@ class MonitorInterface:
     def read_probes(self, env: GFBEnv, obs: np.ndarray, xi: float, eta: float) -> None:
         """One draw of the probes' readings of every sample of the last step: v1's position, velocity
         and envelope errors into ``obs`` and the samples for the monitor (``ep.interface.samples``)."""
-        ep, nb, probes = env._ep, env.nominal_bearing, env.proximity_probes  # noqa: SLF001
+        ep, probes = env._ep, env.proximity_probes  # noqa: SLF001
         st: InterfaceEpisode = ep.interface
         b = ep.bearing
-        c_um, cnom_um = b.clearance_m * 1e6, nb.clearance_m * 1e6
+        c_um = b.clearance_m * 1e6
         xs, es = ep.orbit
         taus = ep.orbit_tau
         if len(xs) == 0:  # a step that ended at once (touchdown in its first integrator step)
             xs, es, taus = np.array([xi]), np.array([eta]), None
         xs_um, es_um = np.asarray(xs) * c_um, np.asarray(es) * c_um
         n = len(xs_um)
-        noise = None
-        if probes.noise_um > 0:  # the draw of measurement_errors: max(n, velocity_window) x (X, Y)
-            noise = probes.noise_um * env.np_random.standard_normal((max(n, probes.velocity_window), 2))
+        noise = probes.draw_noise(env.np_random, n)  # the draw of measurement_errors
         err = probes.errors_of_noise(noise, xs_um, es_um, b.seconds(env.record_interval), ep.probe_bias_um)
-        obs[[OBS_XI, OBS_ETA]] += err.position_um / cnom_um
-        obs[[OBS_XI_DOT, OBS_ETA_DOT]] += err.velocity_um_per_s * nb.time_scale_s / cnom_um
-        obs[[OBS_XI_EXTENT, OBS_ETA_EXTENT]] += err.extent_um / cnom_um
+        env._apply_probe_errors(obs, err)  # noqa: SLF001
         x, y = probes.read_um(xi * c_um, eta * c_um, ep.probe_bias_um)
         if noise is not None:
             x, y = x + err.noise_um[0], y + err.noise_um[1]

@@ -177,11 +177,15 @@ class ProximityProbes:
         n = len(xi_um)
         if n < 1:
             raise ValueError("measurement_errors needs at least one sample")
+        return self.errors_of_noise(self.draw_noise(rng, n), xi_um, eta_um, sample_interval_s, bias_um)
+
+    def draw_noise(self, rng: np.random.Generator, n: int) -> np.ndarray | None:
+        """The white noise of a step of ``n`` samples, um: ``(max(n, velocity_window), 2)`` (rows:
+        samples, columns: X, Y; a short record is padded with earlier samples for the velocity), or
+        None (and no draw) for noise-free probes."""
         if self.noise_um == 0.0:
-            return self.errors_of_noise(None, xi_um, eta_um, sample_interval_s, bias_um)
-        m = max(n, self.velocity_window)
-        noise = self.noise_um * rng.standard_normal((m, 2))  # rows: samples, columns: X, Y
-        return self.errors_of_noise(noise, xi_um, eta_um, sample_interval_s, bias_um)
+            return None
+        return self.noise_um * rng.standard_normal((max(n, self.velocity_window), 2))
 
     def errors_of_noise(
         self,

@@ -1,5 +1,6 @@
 import time
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -56,3 +57,23 @@ def same_value(x, y) -> bool:
     if isinstance(x, float) and np.isnan(x):
         return isinstance(y, float) and np.isnan(y)
     return type(x) is type(y) and x == y
+
+
+def record_short_episode(env_id: str, seed: int, policy=None, episode_steps: int = 12, **kw):
+    """(infos, ``hidden_parameters()`` after each, observations, rewards) of a whole episode of
+    ``episode_steps`` under ``policy(env.unwrapped)`` (default: the task's scripted expert)."""
+    env = gym.make(env_id, **{"episode_steps": episode_steps, **kw})
+    u = env.unwrapped
+    obs, info = env.reset(seed=seed)
+    infos, hidden, observations, rewards = [info], [u.hidden_parameters()], [obs], []
+    done = False
+    while not done:
+        a = u.scripted_action() if policy is None else policy(u)
+        obs, r, term, trunc, info = env.step(a)
+        infos.append(info)
+        hidden.append(u.hidden_parameters())
+        observations.append(obs)
+        rewards.append(r)
+        done = term or trunc
+    env.close()
+    return infos, hidden, observations, rewards

@@ -9,6 +9,7 @@ import json
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import record_short_episode
 
 from gfb_env.envs import ENV_IDS, V2_ENV_IDS
 from gfb_env.envs.contract import (
@@ -25,23 +26,8 @@ SHORT = {"episode_steps": 12}
 RU, RUR, WR = "gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1"
 
 
-def _episode(env_id: str, seed: int, **kw):
-    """(infos, hidden_parameters after each, obs, rewards) of a whole short episode under the task's
-    scripted expert."""
-    env = gym.make(env_id, **SHORT, **kw)
-    u = env.unwrapped
-    obs, info = env.reset(seed=seed)
-    infos, hidden, observations, rewards = [info], [u.hidden_parameters()], [obs], []
-    done = False
-    while not done:
-        obs, r, term, trunc, info = env.step(u.scripted_action())
-        infos.append(info)
-        hidden.append(u.hidden_parameters())
-        observations.append(obs)
-        rewards.append(r)
-        done = term or trunc
-    env.close()
-    return infos, hidden, observations, rewards
+def _episode(env_id: str, seed: int, policy=None, **kw):
+    return record_short_episode(env_id, seed, policy, **kw)
 
 
 @pytest.fixture(scope="module")

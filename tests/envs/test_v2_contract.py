@@ -9,7 +9,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import same_value
+from conftest import record_short_episode, same_value
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_env.envs import ENV_IDS, V2_ENV_IDS
@@ -27,22 +27,7 @@ VERDICT_KEYS = {"certified", "is_success", "termination_reason"}
 
 
 def _episode(env_id: str, seed: int, policy=None, **kw):
-    """(infos, hidden parameters after each, observations, rewards) of a whole short episode."""
-    env = gym.make(env_id, **{**SHORT, **kw})
-    u = env.unwrapped
-    obs, info = env.reset(seed=seed)
-    infos, hidden, observations, rewards = [info], [u.hidden_parameters()], [obs], []
-    done = False
-    while not done:
-        a = u.scripted_action() if policy is None else policy(u)
-        obs, r, term, trunc, info = env.step(a)
-        infos.append(info)
-        hidden.append(u.hidden_parameters())
-        observations.append(obs)
-        rewards.append(r)
-        done = term or trunc
-    env.close()
-    return infos, hidden, observations, rewards
+    return record_short_episode(env_id, seed, policy, **kw)
 
 
 @pytest.fixture(scope="module")

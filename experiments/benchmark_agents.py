@@ -194,12 +194,8 @@ def play_chunk(chunk: Chunk) -> dict:
     import gfb_env.envs  # noqa: F401  (registers the ids in a fresh worker)
 
     t0 = time.perf_counter()
-    kwargs = dict(chunk.env_kwargs)
-    if chunk.task in V2_ENV_IDS:
-        # the judge reads the true quantities from the v2 ids' privileged channel (their info carries
-        # none); the policies never receive info (an oracle reads env.unwrapped's privileged methods)
-        kwargs.setdefault("privileged_info", True)
-    env = gym.make(chunk.task, **kwargs)
+    # the judge (run_episode) reads a v2 id's true quantities from its privileged channel itself
+    env = gym.make(chunk.task, **chunk.env_kwargs)
     try:
         pol = chunk.entry.build(env, chunk.run)
         eps = [

@@ -105,13 +105,20 @@ print(json.dumps({"rate": rate, "load": os.getloadavg()[0]}))
 KINDS = ("native", "whirl", "single", "async", "ppo")
 
 
+#: the PPO entry both sides train with: this checkout's v2 learner defaults (issue 20, item 4; measured by
+#: gfb_experiments.bench_learner), n_envs included; the old side has no v2 ids, so only its settings travel
+PPO_ENTRY = "gfb_env/RunUp-v2"
+
+
 def _ppo_settings() -> dict:
-    """The zoo's RunUp-v1 PPO entry of this checkout, as plain JSON (both sides train with it)."""
+    """The zoo's :data:`PPO_ENTRY` PPO entry of this checkout, as plain JSON (both sides train with it)."""
     from gfb_agents.learned.train import _split_hyperparams, load_hyperparams
 
-    zoo, kwargs = _split_hyperparams(load_hyperparams("ppo", "gfb_env/RunUp-v1"))
+    hp = load_hyperparams("ppo", PPO_ENTRY)
+    zoo, kwargs = _split_hyperparams(hp)
     kwargs = {k: v for k, v in kwargs.items() if isinstance(v, (int, float, str, bool, dict, list))}
-    return {"policy": zoo["policy"], "n_envs": 16, "normalize": zoo["normalize"], "kwargs": kwargs}
+    n_envs = int(zoo.get("n_envs", 1))
+    return {"policy": zoo["policy"], "n_envs": n_envs, "normalize": zoo["normalize"], "kwargs": kwargs}
 
 
 def _links(checkout: Path, root: Path) -> Path:

@@ -119,3 +119,15 @@ def test_measure_books_a_tiny_grid_with_a_counting_clock() -> None:
         assert p.update_s == 1.0
     rows = bl.grid_rows(points)
     assert all(math.isclose(r["learner_over_env"], (2 * k + 1 + 1) / (2 * k)) for r in rows)
+
+
+def test_bench_against_trains_ppo_with_the_v2_defaults() -> None:
+    """bench_env --against's PPO measurement uses this checkout's v2 entry, its n_envs included."""
+    from gfb_experiments.bench_against import _ppo_settings
+
+    s = _ppo_settings()
+    hp = _run_plan(TrainConfig("ppo", env_id="gfb_env/RunUp-v2"))[0]
+    assert s["n_envs"] == hp["n_envs"]
+    assert {k: s["kwargs"][k] for k in ("n_steps", "batch_size", "n_epochs")} == {
+        k: hp[k] for k in ("n_steps", "batch_size", "n_epochs")
+    }

@@ -131,3 +131,21 @@ def test_bench_against_trains_ppo_with_the_v2_defaults() -> None:
     assert {k: s["kwargs"][k] for k in ("n_steps", "batch_size", "n_epochs")} == {
         k: hp[k] for k in ("n_steps", "batch_size", "n_epochs")
     }
+
+
+@pytest.mark.parametrize(
+    "argv, field",
+    [
+        (["--n-envs", "0"], "--n-envs"),
+        (["--batch-size", "1"], "--batch-size"),
+        (["--repeats", "0"], "--repeats"),
+        (["--env-speedup", "nan"], "--env-speedup"),
+        (["--n-envs", "101"], "--n-envs"),
+    ],
+)
+def test_bench_learner_refuses_bad_input_in_one_line(argv, field, capsys, tmp_path) -> None:
+    with pytest.raises(SystemExit) as exc:
+        bl.main([*argv, "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip()
+    assert exc.value.code == 2 and len(err.splitlines()) == 1 and field in err
+    assert not (tmp_path / "out").exists()  # refused before any work

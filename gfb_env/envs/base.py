@@ -570,10 +570,10 @@ class GFBEnv(gym.Env):
         bearing_number, foil_damping = self._command(a)
         kick = self._maybe_kick()
         integ = self._integ
-        if self._sync is not None:
-            self._sync.before_step(integ)
         lam0, tau0, theta0 = integ.bearing_number, integ.tau, integ.rotation_angle
         self._schedule_shocks()
+        if self._sync is not None:
+            self._sync.before_step(integ, kick)
         call: PreparedCall | None = None
         failure: Exception | None = None
         try:

@@ -98,6 +98,7 @@ class SuperposedResponse:
         self.stepped_steps = 0
         self.switches = 0
         self._rate = 0.0
+        self._film: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # (X, its film response)
 
     def __deepcopy__(self, memo: dict) -> SuperposedResponse:
         # the solver is workspace (its tracked mode is state): share the arrays, copy the state
@@ -231,7 +232,10 @@ class SuperposedResponse:
             idx = np.concatenate([rotor, np.asarray(probe_indices, np.int64)])
             xs = x0[idx][None, :] + np.outer(w, self.x[idx] - x0[idx])
             add = (xs * rot[:, None]).real
-            h0, h1 = self.solver.film_response(x0), self.solver.film_response(self.x)
+            # the film's 1x at the step's start was computed at the end of the last one (same X)
+            h0 = self._film[1] if self._film[0] is x0 else self.solver.film_response(x0)
+            h1 = self.solver.film_response(self.x)
+            self._film = (self.x, h1)
             i_min = int(np.argmin(self.solver.model.film_thickness(integ.state)))
             dh = ((h0[i_min] + w * (h1[i_min] - h0[i_min])) * rot).real
             self.deviation = self._whirl_amplitude(tr.tau, tr.xi, tr.eta)

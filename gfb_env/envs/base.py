@@ -957,7 +957,7 @@ class GFBEnv(gym.Env):
             self._renderer = EpisodeRenderer(
                 self.render_mode, self.damping_range, self.metadata["render_fps"]
             )
-        return self._renderer.render(self._ep, self._integ.state, self._integ.tau)
+        return self._renderer.render(self._ep, self._plant_state(), self._integ.tau)
 
     def close(self) -> None:
         if self._renderer is not None:

@@ -188,6 +188,12 @@ class SuperposedResponse:
         with a base shock (scheduled on ``integ``) or a velocity ``kick`` is stepped (its transient
         is large)."""
         valid = (not kick) and (not integ.shocks) and self._valid(entering=not self.superposed)
+        if valid and not self.superposed:
+            # after stepping (a whirl, a shock) the tracked eigenvalue may have wandered to another
+            # mode: find the least damped one afresh at the orbit's centre before superposing
+            s = integ.state - self._offset(integ.rotation_angle)
+            self.solver.start_mode(s, integ.bearing_number, integ.foil_damping)
+            valid = self._valid(entering=True)
         if valid != self.superposed:
             self._switch(integ, to_superposed=valid)
             self.switches += 1

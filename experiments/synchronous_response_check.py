@@ -112,10 +112,6 @@ def part_linearity(lams: Sequence[float], tau_run: float) -> list[dict]:
 
 
 # ------------------------------------------------------------------------------------------------
-def _hold_action(env) -> np.ndarray:
-    return np.array([0.0, 0.0])
-
-
 def part_cost(fractions: Sequence[float], steps: int, repeats: int) -> list[dict]:
     """Speed held at ``fraction * Lambda_c(D_W=1)`` (the env's speed set at reset through the plant)."""
     rows = []
@@ -237,7 +233,7 @@ def run_episode(task: str, seed: int, policy: str, mode: str, options: dict | No
 
 def compare(ref: dict, other: dict, only_superposed: bool = False) -> dict:
     """Per entry max |other - ref| / noise (over every step, or the steps ``other`` superposed)."""
-    n = min(len(ref["obs"]), len(other["obs"]))
+    n = min(len(ref["obs"]), len(other["obs"]), len(other["superposed"]))
     rows = other["superposed"][:n] if only_superposed else np.ones(n, bool)
     if not rows.any():
         return {"steps": 0}
@@ -261,9 +257,9 @@ def compare(ref: dict, other: dict, only_superposed: bool = False) -> dict:
     }
 
 
-def part_episodes(seeds: Sequence[int], policies: Sequence[str]) -> list[dict]:
+def part_episodes(seeds: Sequence[int], policies: Sequence[str], tasks: Sequence[str] = TASKS) -> list[dict]:
     rows = []
-    for task in TASKS:
+    for task in tasks:
         for policy in policies:
             for seed in seeds:
                 ref = run_episode(task, seed, policy, "stepped", TIGHT)
@@ -337,6 +333,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--policies", nargs="+", default=["hold", "ramp"], choices=("hold", "ramp"))
+    ap.add_argument("--tasks", nargs="+", default=list(TASKS), choices=TASKS)
     ap.add_argument("--out", default=None, help="write the rows as JSON here")
     a = ap.parse_args(argv)
     if a.tau <= 300 or a.steps < 1 or a.repeats < 1:
@@ -346,7 +343,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     elif a.part == "cost":
         rows = part_cost(a.fractions, a.steps, a.repeats)
     else:
-        rows = part_episodes(a.seeds, a.policies)
+        rows = part_episodes(a.seeds, a.policies, a.tasks)
     if a.out:
         with open(a.out, "w") as f:
             json.dump(rows, f, indent=1, default=str)

@@ -325,6 +325,11 @@ class SynchronousSolver:
         self._sparse = model.sparse_offdiagonal_blocks
         self._tag = K.size_tag(m)
         self._w = np.zeros(n, c)
+        self._h = np.empty(nc)
+        self._h_zero = model.film_thickness(np.zeros(n))  # H of the zero state (H is affine in s)
+        #: the compiled variant's entry point once known: numba's dispatcher types each of the ~30
+        #: arguments on every call (tens of us); their types are fixed for one solver
+        self._entry = None
         #: the tracked eigenvalue and its unit eigenvector estimate
         self.mode = 0.0j
         self.mode_vector = np.zeros(n, c)
@@ -332,11 +337,20 @@ class SynchronousSolver:
     def _call(self, s: np.ndarray, lam: float, dw: float, b: np.ndarray, mu: complex) -> tuple:
         bl = self._blocks
         x = np.empty(b.shape[0], np.complex128)
-        ok, est = _synchronous_update(
-            s, float(lam), float(dw), *self._kargs, self._F, self._H, self._Hd,
-            bl["Ad"], bl["Ap"], bl["Am"], bl["Er"], bl["Rr"], bl["Srr"], *self._lu,
+        args = (
+            np.ascontiguousarray(s, dtype=np.float64), float(lam), float(dw), *self._kargs, self._F,
+            self._H, self._Hd, bl["Ad"], bl["Ap"], bl["Am"], bl["Er"], bl["Rr"], bl["Srr"], *self._lu,
             self._nr, self._sparse, self._tag, b, x, complex(mu), self.mode_vector, self._w,
         )  # fmt: skip
+        if self._entry is not None:
+            ok, est = self._entry(*args)
+        else:
+            ok, est = _synchronous_update(*args)
+            try:
+                types = tuple(_synchronous_update.typeof_pyval(a) for a in args)
+                self._entry = _synchronous_update.overloads[types].entry_point
+            except (KeyError, AttributeError):  # pragma: no cover - numba without these internals
+                pass
         if not ok:
             raise np.linalg.LinAlgError("synchronous response: i Lambda I - J is singular")
         return x, complex(est)
@@ -360,15 +374,21 @@ class SynchronousSolver:
         self.mode = mu
         return mu
 
-    def update(self, s: np.ndarray, lam: float, dw: float, b: np.ndarray) -> np.ndarray:
+    def update(self, s: np.ndarray, lam: float, dw: float, b: np.ndarray, track: bool = True) -> np.ndarray:
         """``X`` at the state ``s`` (``Lambda = lam > 0``, ``D_W = dw``) for the forcing amplitude ``b``
-        (:func:`synchronous_forcing`), and one tracking step of :attr:`mode`."""
+        (:func:`synchronous_forcing`), and (``track``) one tracking step of :attr:`mode` (its second
+        factorisation: about half the call)."""
+        if not track:
+            return self._call(s, lam, dw, b, 0.0)[0]
         x, self.mode = self._call(s, lam, dw, b, self.mode)
         return x
 
     def film_response(self, x: np.ndarray) -> np.ndarray:
         """The complex amplitude of the film thickness per column of the state change ``Re(x e^{i
         theta})`` (H is affine in the state)."""
-        m = self.model
-        h0 = m.film_thickness(np.zeros(m.layout.size))
-        return (m.film_thickness(x.real) - h0) + 1j * (m.film_thickness(x.imag) - h0)
+        h, h0 = self._h, self._h_zero
+        K.film_thickness(np.ascontiguousarray(x.real), *self._kargs, h)
+        out = (h - h0).astype(np.complex128)
+        K.film_thickness(np.ascontiguousarray(x.imag), *self._kargs, h)
+        out.imag = h - h0
+        return out

@@ -69,6 +69,12 @@ MIN_DECAY_RATE = 0.002
 MAX_DEVIATION = 0.001
 #: Smallest film thickness (units of C) of a superposed step: 5x the tasks' touchdown threshold.
 MIN_FILM = 0.1
+#: The tracked eigenvalue is updated every step while its growth rate is above -0.02 (10x the threshold),
+#: stepped, or when Lambda moved by 0.002 (the growth rate by ~5e-4: d Re(lambda) / d Lambda ~ 0.23 on
+#: the nominal plant) or D_W by 2 % since the last update; otherwise it cannot have moved.
+TRACK_ALWAYS_ABOVE = 0.02
+TRACK_BEARING_NUMBER_CHANGE = 0.002
+TRACK_LOG_DAMPING_CHANGE = 0.02
 #: Back to superposed only well inside the thresholds (no chattering at the boundary).
 HYSTERESIS = 0.5
 
@@ -98,6 +104,7 @@ class SuperposedResponse:
         self.stepped_steps = 0
         self.switches = 0
         self._rate = 0.0
+        self._tracked_at = (math.inf, 1.0)  # (Lambda, D_W) of the last tracking step
         self._film: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # (X, its film response)
 
     def __deepcopy__(self, memo: dict) -> SuperposedResponse:
@@ -141,7 +148,18 @@ class SuperposedResponse:
             self.x[:] = 0.0
             return
         b = synchronous_forcing(self.solver.model, self.unbalance, lam, self._rate)
-        self.x = self.solver.update(s, lam, dw, b)
+        # the eigenvalue moves only with the operating point: far from the threshold and with Lambda
+        # and D_W where they were at the last tracking step it is not re-tracked (half the solve)
+        lt, dt = self._tracked_at
+        track = (
+            self.growth_rate > -TRACK_ALWAYS_ABOVE
+            or abs(lam - lt) > TRACK_BEARING_NUMBER_CHANGE
+            or abs(math.log(dw / dt)) > TRACK_LOG_DAMPING_CHANGE
+            or not self.superposed
+        )
+        self.x = self.solver.update(s, lam, dw, b, track=track)
+        if track:
+            self._tracked_at = (lam, dw)
 
     def _valid(self, entering: bool) -> bool:
         k = HYSTERESIS if entering else 1.0

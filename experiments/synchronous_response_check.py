@@ -112,7 +112,7 @@ def part_linearity(lams: Sequence[float], tau_run: float) -> list[dict]:
 
 
 # ------------------------------------------------------------------------------------------------
-def part_cost(fractions: Sequence[float], steps: int, repeats: int) -> list[dict]:
+def part_cost(fractions: Sequence[float], steps: int, repeats: int, warmup: int = 25) -> list[dict]:
     """Speed held at ``fraction * Lambda_c(D_W=1)`` (the env's speed set at reset through the plant)."""
     rows = []
     for frac in fractions:
@@ -130,10 +130,11 @@ def part_cost(fractions: Sequence[float], steps: int, repeats: int) -> list[dict
                 env._ep.actuator = env.damping_actuator.start(1.0, env._ep.actuator.gain)
                 env._start_synchronous_response(env._sync.unbalance if env._sync else integ.unbalance)
                 a = np.array([0.0, env.action_from_damping(1.0 / env._ep.actuator.gain)])
-                # warm up (free transient of the switch-on), then time
-                for _k in range(3):
+                # past the switch-on transient (stepped until the free motion is below 0.0005 C), then time
+                for _k in range(warmup):
                     env.step(a)
                 n0 = env.episode.integrator_steps
+                sup0 = env._sync.superposed_steps if env._sync is not None else 0
                 t0 = time.process_time()
                 for _k in range(steps):
                     env.step(a)
@@ -145,6 +146,7 @@ def part_cost(fractions: Sequence[float], steps: int, repeats: int) -> list[dict
                 "us_per_step": best,
                 "integrator_steps": counts,
                 "superposed_steps": None if sync is None else sync.superposed_steps,
+                "timed_steps_superposed": None if sync is None else sync.superposed_steps - sup0,
                 "growth_rate": None if sync is None else sync.growth_rate,
             }
         print(json.dumps(row), flush=True)

@@ -52,6 +52,7 @@ from gfb_env.envs.config import DEFAULT_GRID, EnvConfig
 from gfb_env.envs.episode import Episode, EpisodeSetup, History, StepOutcome, TerminationReason
 from gfb_env.envs.privileged import DrawnBearing, HiddenParameters, ResidualUnbalance, SensorDraws
 from gfb_env.envs.render import EpisodeRenderer
+from gfb_env.envs.synchronous_plant import SuperposedResponse
 from gfb_env.envs.units import (
     N_ROTOR_OBS,
     OBS_DAMPING,
@@ -65,7 +66,7 @@ from gfb_env.envs.units import (
     ActionMap,
     ObservationLayout,
 )
-from gfb_env.forcing import HalfSineShock
+from gfb_env.forcing import HalfSineShock, Unbalance
 from gfb_env.integrator import (
     DEFAULT_MAX_STEPS,
     AdvanceResult,
@@ -78,6 +79,7 @@ from gfb_env.machine import FoilDampingActuator, Motor, PressureTaps, ProximityP
 from gfb_env.machine.probes import ProbeErrors
 from gfb_env.model import GFBModel, Grid, Structure
 from gfb_env.params import BearingParameters
+from gfb_env.synchronous import SynchronousSolver
 
 __all__ = [
     "GFBEnv",
@@ -241,6 +243,10 @@ class GFBEnv(gym.Env):
         self._plant = BatchAdvance(num_threads=1)
         self._pending: StepPlan | None = None
         self._ep: Episode | None = None
+        #: the superposed 1x response of the episode (``synchronous_response="superposed"`` and an
+        #: unbalance; :mod:`gfb_env.envs.synchronous_plant`), else None; its solver per model
+        self._sync: SuperposedResponse | None = None
+        self._sync_solver: SynchronousSolver | None = None
         self._renderer: EpisodeRenderer | None = None
 
     # ------------------------------------------------------------------------------------------
@@ -349,7 +355,7 @@ class GFBEnv(gym.Env):
         Privileged: for oracles, teacher-student training and debugging, never for a benchmarked
         policy."""
         ep = self.episode
-        u = self._integ.unbalance
+        u = self._rotor_unbalance()
         unbalance = None
         if u is not None:
             b = ep.bearing
@@ -397,7 +403,7 @@ class GFBEnv(gym.Env):
         the bearing force.  ``info["privileged"]`` (``privileged_info=True``) is this plus
         ``hidden_parameters``.  Privileged (module :mod:`gfb_env.envs.privileged`)."""
         ep, integ = self.episode, self._integ
-        model, b, s = ep.model, ep.bearing, integ.state
+        model, b, s = ep.model, ep.bearing, self._plant_state()
         xi, eta, xi_dot, eta_dot = model.layout.rotor(s)
         force = model.bearing_force(s)
         eps = math.hypot(xi, eta)
@@ -503,6 +509,7 @@ class GFBEnv(gym.Env):
         tap_bias = self.pressure_taps.draw_bias(rng, self.n_pressure_probes)
         unbalance, grade = self.config.rotor_balance.draw(rng, b, self.speed_range_rpm[1])
         self._integ.set_unbalance(unbalance)
+        self._start_synchronous_response(unbalance)
         self._ep = Episode(
             model=setup.model,
             bearing=b,
@@ -565,6 +572,8 @@ class GFBEnv(gym.Env):
         integ = self._integ
         lam0, tau0, theta0 = integ.bearing_number, integ.tau, integ.rotation_angle
         self._schedule_shocks()
+        if self._sync is not None:
+            self._sync.before_step(integ, kick)
         call: PreparedCall | None = None
         failure: Exception | None = None
         try:
@@ -599,6 +608,11 @@ class GFBEnv(gym.Env):
         if plan is not self._pending:
             raise ValueError("finish_step: plan is not this env's pending plan (from its plan_step)")
         self._pending = None
+        if self._sync is not None:
+            result = self._sync.after_step(
+                self._integ, plan.tau_start, plan.rotation_angle_start, plan.bearing_number_start,
+                self._probe_idx, result,
+            )  # fmt: skip
         out, trace = self._plant_outcome(plan.bearing_number_start, result)
         self._judge(out, trace, plan.action, plan.action_sanitised, plan.disturbance)
         self._ep.record_start = (plan.tau_start, plan.rotation_angle_start, plan.bearing_number_start)
@@ -650,6 +664,25 @@ class GFBEnv(gym.Env):
         integ.reset(s, integ.bearing_number, integ.foil_damping, integ.tau, integ.rotation_angle)
         return True
 
+    def _start_synchronous_response(self, unbalance: Unbalance | None) -> None:
+        """At ``reset``: the superposed 1x response of the episode (``synchronous_response=
+        "superposed"`` and an unbalanced rotor; it may restart the integrator unforced), else None."""
+        self._sync = None
+        if self.config.synchronous_response != "superposed" or self._integ.unbalance is None:
+            return
+        model = self._integ.model
+        if self._sync_solver is None or self._sync_solver.model is not model:
+            self._sync_solver = SynchronousSolver(model)
+        self._sync = SuperposedResponse.start(self._sync_solver, self._integ, unbalance, _whirl_amplitude)
+
+    def _rotor_unbalance(self) -> Unbalance | None:
+        """The rotor's unbalance (the integrator's, or the superposed response's while it is off there)."""
+        return self._sync.unbalance if self._sync is not None else self._integ.unbalance
+
+    def _plant_state(self) -> np.ndarray:
+        """The plant's true state: the integrator's (plus the superposed 1x response)."""
+        return self._sync.true_state(self._integ) if self._sync is not None else self._integ.state
+
     def _plant_outcome(self, lam0: float, res: AdvanceResult | Exception) -> tuple[StepOutcome, PlantTrace]:
         """What the plant did in the step (``lam0``: Lambda at its start) from the integrator's result."""
         integ, ep = self._integ, self._ep
@@ -674,7 +707,7 @@ class GFBEnv(gym.Env):
         if not math.isfinite(amp):
             amp = 0.5 * max(_span(xr), _span(er)) if math.isfinite(_span(xr) + _span(er)) else 0.0
         if not math.isfinite(min_h):
-            min_h = ep.model.min_film_thickness(integ.state)
+            min_h = ep.model.min_film_thickness(self._plant_state())
         out = StepOutcome(lam0, integ.bearing_number, integ.foil_damping, amp, min_h, touchdown, failure)
         return out, PlantTrace(xr, er, orbit, steps, orbit_tau)
 
@@ -734,7 +767,7 @@ class GFBEnv(gym.Env):
         b = ep.bearing
         return CertifiedPlant(
             ep.model,
-            self._integ.state,
+            self._plant_state(),
             (g * dmin, g * dmax),
             self.best_stable_operating_point if known else None,
             shocks=ep.shock_schedule,
@@ -765,7 +798,7 @@ class GFBEnv(gym.Env):
         return obs.astype(np.float32)
 
     def _raw_observation(self) -> np.ndarray:
-        ep, s = self._ep, self._integ.state
+        ep, s = self._ep, self._plant_state()
         xi, eta, xi_dot, eta_dot = ep.model.layout.rotor(s)
         n = N_ROTOR_OBS + self.n_pressure_probes
         obs = np.zeros(n, dtype=np.float64)
@@ -834,7 +867,7 @@ class GFBEnv(gym.Env):
     def _info(self) -> dict:
         ep, integ, model = self._ep, self._integ, self._ep.model
         b = ep.bearing
-        s = integ.state
+        s = self._plant_state()
         xi, eta, xi_dot, eta_dot = model.layout.rotor(s)
         force = model.bearing_force(s)
         lam = integ.bearing_number
@@ -847,7 +880,7 @@ class GFBEnv(gym.Env):
             "foil_damping": integ.foil_damping,
             "damping_gain": ep.actuator.gain,
             "balance_grade_mm_s": ep.balance_grade_mm_s,
-            "unbalance_um": b.micrometres(integ.unbalance.magnitude) if integ.unbalance is not None else 0.0,
+            "unbalance_um": b.micrometres(u.magnitude) if (u := self._rotor_unbalance()) is not None else 0.0,
             "shocks": len(ep.shocks),
             "shock_peak_g": max((e.peak_g for e in ep.shocks), default=0.0),
             "probe_x_um": float(ep.probe_readings_um[0]),
@@ -894,6 +927,7 @@ class GFBEnv(gym.Env):
             "integrator": self._integ.snapshot(),
             "episode": copy.deepcopy(self._ep),
             "np_random": copy.deepcopy(self.np_random.bit_generator.state),
+            "synchronous_response": copy.deepcopy(self._sync),
         }
 
     def set_state(self, snapshot: dict) -> None:
@@ -906,6 +940,7 @@ class GFBEnv(gym.Env):
             )
             self._probe_idx = ep.model.layout.midplane_probe_indices(self.n_pressure_probes)
         self._integ.restore(integ_state)
+        self._sync = copy.deepcopy(snapshot.get("synchronous_response"))
         self._ep = ep
         self._pending = None
         self.np_random.bit_generator.state = copy.deepcopy(snapshot["np_random"])
@@ -922,7 +957,7 @@ class GFBEnv(gym.Env):
             self._renderer = EpisodeRenderer(
                 self.render_mode, self.damping_range, self.metadata["render_fps"]
             )
-        return self._renderer.render(self._ep, self._integ.state, self._integ.tau)
+        return self._renderer.render(self._ep, self._plant_state(), self._integ.tau)
 
     def close(self) -> None:
         if self._renderer is not None:

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from gfb_env.envs._data import NOMINAL_BEARING
+from gfb_env.envs.synchronous_plant import SYNCHRONOUS_RESPONSES
 from gfb_env.integrator import IntegratorOptions
 from gfb_env.machine import (
     FoilDampingActuator,
@@ -141,6 +142,11 @@ class EnvConfig:
             observation, the reward and costs from the measurements, the sensor-only info).
         raw_probe_samples: (v2 only) put the step's measured probe samples under
             ``info["probe_samples"]``; default False (nothing is computed then).
+        synchronous_response: how the plant carries the rotor's residual unbalance: ``"stepped"``
+            (default: the forcing through the integrator, steps of at most 1/32 revolution) or
+            ``"superposed"`` (opt-in: the analytic 1x response added to an unforced plant where the
+            linear regime holds, stepped elsewhere; :mod:`gfb_env.envs.synchronous_plant`).  No effect
+            on a balanced rotor.
     """
 
     grid: Grid = field(default_factory=lambda: Grid.parse(DEFAULT_GRID))
@@ -167,6 +173,7 @@ class EnvConfig:
     privileged_info: bool = False
     interface: Any = None
     raw_probe_samples: bool = False
+    synchronous_response: str = "stepped"
 
     def __post_init__(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -223,6 +230,13 @@ class EnvConfig:
         put("raw_probe_samples", check_bool("raw_probe_samples", self.raw_probe_samples))
         if self.raw_probe_samples and self.interface is None:
             raise ValueError("raw_probe_samples needs the v2 interface (a -v2 id); v1 has no sample record")
+        if not (
+            isinstance(self.synchronous_response, str) and self.synchronous_response in SYNCHRONOUS_RESPONSES
+        ):
+            raise ValueError(
+                f"synchronous_response must be one of {list(SYNCHRONOUS_RESPONSES)}, "
+                f"got {self.synchronous_response!r}"
+            )
         if self.shock_arrivals.rate_per_s > 0 and self.disturbance_probability > 0:
             raise ValueError(
                 "shock_arrivals and disturbance_probability > 0 exclude each other: physical shocks replace "

@@ -10,7 +10,9 @@ from typing import Any
 
 import numba
 import numpy as np
-from numba import njit, prange
+from llvmlite import ir
+from numba import njit, prange, types
+from numba.extending import intrinsic
 
 from gfb_env import _kernels as K
 from gfb_env.integrator.arguments import (
@@ -66,11 +68,32 @@ def _advance_env(i, b, n_rows, sparse, size_tag):
     store_clock(c, clock)
 
 
+@intrinsic
+def _claim(typingctx, counter):
+    """``counter[0]`` before adding 1 to it, atomically (LLVM's ``atomicrmw add``, sequentially
+    consistent): the work index the threads of :func:`_advance_batch` take their envs from."""
+    if not (isinstance(counter, types.Array) and counter.dtype == types.int64):
+        return None
+
+    def codegen(context, builder, signature, args):
+        data = context.make_array(signature.args[0])(context, builder, args[0]).data
+        return builder.atomic_rmw("add", data, ir.Constant(ir.IntType(64), 1), "seq_cst")
+
+    return types.int64(counter), codegen
+
+
 @njit(parallel=True, cache=True)
-def _advance_batch(b, lu_static):
-    """:func:`_advance_env` of env i = 0..N-1 in a ``prange``.  A parallel loop takes arrays, not
-    tuples: ``b`` is unpacked by name before it and repacked by keyword inside (one BatchArrays per
-    env; numba refuses a name that BatchArrays lacks or misses), ``lu_static`` likewise."""
+def _advance_batch(b, lu_static, order, counter, n_workers):
+    """:func:`_advance_env` of envs ``order[0], order[1], ...`` claimed one at a time by ``n_workers``
+    workers (a ``prange`` over the workers; each takes the next env of the shared work index
+    ``counter[0]`` (0 on entry) when it is done with its last one).  Why not a ``prange`` over the envs:
+    numba's ``workqueue`` layer hands each thread a fixed, contiguous share of the iterations whatever
+    the chunk size, so the call waits for the thread whose envs cost most or that the OS preempted (on
+    a shared machine the second thread got 0.57 of a core); with the claim the envs flow to whichever
+    thread runs.  Each env is still one :func:`_advance_env` of its own rows, so the results do not
+    depend on the order, the worker or the thread count.  A parallel loop takes arrays, not tuples:
+    ``b`` is unpacked by name before it and repacked by keyword inside (numba refuses a name that
+    BatchArrays lacks or misses), ``lu_static`` likewise."""
     n_rows, sparse, size_tag = lu_static
     calls, y, ip, fp, sn, cs = b.calls, b.y, b.ip, b.fp, b.sn, b.cs
     Ad, Ap, Am, Er, Rr, Srr = b.Ad, b.Ap, b.Am, b.Er, b.Rr, b.Srr
@@ -82,13 +105,17 @@ def _advance_batch(b, lu_static):
         b.ext,
         b.shocks,
     )
-    for i in prange(calls.shape[0]):
+    n = order.shape[0]
+    for _w in prange(n_workers):
         env = BatchArrays(
             calls=calls, y=y, ip=ip, fp=fp, sn=sn, cs=cs, Ad=Ad, Ap=Ap, Am=Am, Er=Er, Rr=Rr, Srr=Srr,
             Dlu=Dlu, Dpiv=Dpiv, Uhat=Uhat, Yw=Yw, Slu=Slu, Spiv=Spiv, record_indices=record_indices,
             record_buffers=record_buffers, stats=stats, ext=ext, shocks=shocks,
         )  # fmt: skip
-        _advance_env(i, env, n_rows, sparse, size_tag)
+        j = _claim(counter)
+        while j < n:
+            _advance_env(order[j], env, n_rows, sparse, size_tag)
+            j = _claim(counter)
 
 
 @njit(cache=True)
@@ -98,6 +125,12 @@ def _advance_batch_serial(b, lu_static):
     n_rows, sparse, size_tag = lu_static
     for i in range(b.calls.shape[0]):
         _advance_env(i, b, n_rows, sparse, size_tag)
+
+
+#: an env's cost in a call from its counts (``stats``: steps, rejections, Jacobians, factorisations,
+#: rhs calls, ...): the kernels' CPU us on the 31x7 grid (Jacobian 7.8, factorisation 15, rhs 0.88
+#: plus a block solve 2.35 per Newton iteration); only the order of the parallel call's claims uses it
+_COST_OF_COUNT = np.array([0.0, 0.0, 0.0, 7.8, 15.0, 3.2, 0.0, 0.0, 0.0])
 
 
 def _choose_threading_layer() -> None:
@@ -126,6 +159,7 @@ class _BatchWorkspace:
         self.shape_key = _shape_key(model)
         self.capacity, self.n_recorded = capacity, n_recorded
         self.kargs_of_slot: list[tuple | None] = [None] * N  # whose kernel args each row holds
+        self.cost = np.zeros(N)  # each row's cost in its last call (:data:`_COST_OF_COUNT`)
         self.lu_static = (model.grid.n_rows, model.sparse_offdiagonal_blocks, K.size_tag(m))
         self.stacked = BatchArrays(
             calls=z(N, CALL_DTYPE),
@@ -290,16 +324,17 @@ class BatchAdvance:
         if threads == 1:
             self._launch(_advance_batch_serial, key, b, ws.lu_static)
         else:
+            # the costliest envs of the last call first (longest processing time first: the last
+            # env claimed is then a cheap one, so the threads end together)
+            order = np.argsort(-ws.cost[:n], kind="stable")
+            counter = np.zeros(1, np.int64)
             old_threads = numba.get_num_threads()
             numba.set_num_threads(threads)
-            # many envs of unequal cost: one at a time to each thread (dynamic scheduling costs ~30 us
-            # more per launch, measured; with a few envs per thread the static split is cheaper)
-            old_chunk = numba.set_parallel_chunksize(1 if n > 4 * threads else 0)
             try:
-                self._launch(_advance_batch, key, b, ws.lu_static)
+                self._launch(_advance_batch, key, b, ws.lu_static, order, counter, threads)
             finally:
-                numba.set_parallel_chunksize(old_chunk)
                 numba.set_num_threads(old_threads)
+        ws.cost[:n] = b.stats @ _COST_OF_COUNT
         clocks = b.calls[list(CLOCK_FIELDS)].tolist()
         codes = b.calls["status"].tolist()
         counts, exts = b.stats.tolist(), b.ext.tolist()

@@ -290,7 +290,8 @@ class VibrationMonitor:
         r_inv = np.linalg.solve(r, np.eye(r.shape[0]))
         cov = r_inv @ r_inv.T  # (A^T A)^-1: multiply by sigma^2
         fitted = A @ coef
-        residual_rms = np.sqrt(np.mean((data - fitted) ** 2, axis=0))
+        # (np.mean's sum and division by n, without its Python layer)
+        residual_rms = np.sqrt(np.add.reduce((data - fitted) ** 2, axis=0) / n)
 
         # --- the dominant sub-synchronous ratio: one sinusoid scanned over the band ------------
         nuisance_q = q[:, :_N_NUISANCE]  # an orthonormal basis of the first 6 columns (QR is nested)

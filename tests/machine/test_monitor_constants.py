@@ -28,3 +28,12 @@ def test_band_ratios_are_cached_but_not_shared():
     other = dataclasses.replace(m, subsynchronous_band_ratio=(0.2, 0.5), subsynchronous_frequencies=3)
     assert np.array_equal(other.band_ratios, np.linspace(0.2, 0.5, 3))
     assert m == VibrationMonitor()  # no hidden state in equality
+
+
+def test_the_probes_inverse_geometry_is_cached_read_only():
+    from gfb_env.machine import ProximityProbes
+
+    p = ProximityProbes()
+    inv = p._inverse_directions
+    assert inv is p._inverse_directions and not inv.flags.writeable
+    assert inv.tobytes() == np.linalg.inv(p.directions).tobytes()

@@ -409,7 +409,9 @@ def _band_basis(band: np.ndarray, nuisance_q: np.ndarray) -> np.ndarray:
     (orthonormal ``nuisance_q``); directions of the band (almost) inside the nuisance span are dropped."""
     perp = band - nuisance_q @ (nuisance_q.T @ band)
     u, sv, _ = np.linalg.svd(perp, full_matrices=False)
-    scale = np.linalg.norm(band, axis=0).max()
+    # the columns' norms as np.linalg.norm(band, axis=0) computes them for real input (the root of
+    # the summed squares), without its Python layer
+    scale = np.sqrt(np.add.reduce(band * band, axis=0)).max()
     return u[:, sv > 1e-8 * scale]
 
 

@@ -65,3 +65,47 @@ def test_the_order_of_claims_and_the_threads_change_no_bit():
     one = _run(1, False)
     assert one == _run(2, False) == _run(2, True)
     assert len({steps for steps, *_ in one}) > 1  # the envs did cost different amounts
+
+
+def _each_run(threads: int, fail_at: int | None = None) -> tuple[list, list[int]]:
+    its = _fleet()
+    batch = BatchAdvance(num_threads=threads)
+    out, seen = [], []
+    for call in range(2):
+        lam = [0.5 + 0.03 * call + 0.01 * k for k in range(len(its))]
+        calls = [it.prepare(it.tau + 4.0, lam[k], None, 0.2, None, 100_000) for k, it in enumerate(its)]
+        got: dict[int, object] = {}
+
+        def each(k, r, got=got):
+            if fail_at is not None and len(got) == fail_at:
+                raise RuntimeError("each failed")
+            assert k not in got
+            got[k] = r
+            seen.append(k)
+
+        batch.run_prepared_each(its, calls, each)
+        out += [(got[k].steps, got[k].trajectory.xi.tobytes(), it.state.tobytes()) for k, it in enumerate(its)]
+    return out, seen
+
+
+def test_results_handed_on_as_they_come_are_the_batch_results():
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba sees one core")
+    one, seen_one = _each_run(1)
+    assert seen_one == list(range(5)) * 2  # one thread: in order, after the whole batch
+    two, seen_two = _each_run(2)
+    assert two == one and sorted(seen_two) == sorted(seen_one)
+
+
+def test_an_error_in_each_propagates_after_the_workers_are_done():
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba sees one core")
+    with pytest.raises(RuntimeError, match="each failed"):
+        _each_run(2, fail_at=2)
+    batch = BatchAdvance(num_threads=2)
+    its = _fleet()[:2]
+    calls = [it.prepare(it.tau + 2.0, 0.5, None, 0.2, None, 100_000) for it in its]
+    got = []
+    batch.run_prepared_each(its, calls, lambda k, r: got.append(k))
+    pool = batch._pool(1)
+    assert sorted(got) == [0, 1] and batch._pool(1) is pool  # the pool is kept between calls

@@ -431,6 +431,7 @@ class GFBVectorEnv(VectorEnv):
             setattr(env, name, v)
 
     def close_extras(self, **kwargs: Any) -> None:
+        self._batch.close()
         for env in self.envs:
             env.close()
 

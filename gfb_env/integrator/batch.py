@@ -384,6 +384,16 @@ class BatchAdvance:
             futures_wait(workers)
         ws.cost[:n] = b.stats @ _COST_OF_COUNT
 
+    def close(self) -> None:
+        """Stop the worker threads (a later :meth:`run_prepared_each` starts new ones)."""
+        pool, self._workers = self._workers, None
+        if pool is not None and pool[0] == os.getpid():
+            pool[2].shutdown(wait=False)
+
+    def __getstate__(self) -> dict:
+        # a copy or a pickle holds no threads (a thread pool can be neither): it starts its own
+        return {**self.__dict__, "_workers": None}
+
     def _pool(self, workers: int) -> ThreadPoolExecutor:
         """The worker threads of :meth:`run_prepared_each` (a new pool after a fork or a change of
         the thread count: a forked child has no threads)."""

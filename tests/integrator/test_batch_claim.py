@@ -84,7 +84,9 @@ def _each_run(threads: int, fail_at: int | None = None) -> tuple[list, list[int]
             seen.append(k)
 
         batch.run_prepared_each(its, calls, each)
-        out += [(got[k].steps, got[k].trajectory.xi.tobytes(), it.state.tobytes()) for k, it in enumerate(its)]
+        out += [
+            (got[k].steps, got[k].trajectory.xi.tobytes(), it.state.tobytes()) for k, it in enumerate(its)
+        ]
     return out, seen
 
 
@@ -109,3 +111,17 @@ def test_an_error_in_each_propagates_after_the_workers_are_done():
     batch.run_prepared_each(its, calls, lambda k, r: got.append(k))
     pool = batch._pool(1)
     assert sorted(got) == [0, 1] and batch._pool(1) is pool  # the pool is kept between calls
+
+
+def test_a_copy_holds_no_threads_and_close_stops_them():
+    import copy
+    import pickle
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba sees one core")
+    batch = BatchAdvance(num_threads=2)
+    pool = batch._pool(1)
+    for twin in (copy.deepcopy(batch), pickle.loads(pickle.dumps(batch))):
+        assert twin._workers is None and twin.num_threads == 2
+    batch.close()
+    assert batch._workers is None and pool._shutdown

@@ -7,13 +7,15 @@ one control step as the single env's stages over the whole batch:
 
 1. :meth:`GFBEnv.plan_step` of each env (its action checked and sanitised, its motor, actuator, kick and
    shocks, its plant's call prepared; each env's random draws stay in their own order);
-2. the plant: :func:`~gfb_env.envs.base.advance_plans`, the integrator of every stepped env over the
-   control interval, in one compiled call that runs the envs' adaptive loops in parallel (numba
-   ``prange`` over the envs, :class:`~gfb_env.integrator.BatchAdvance`; ``num_threads`` threads, default
-   all cores numba sees; the results do not depend on the thread count);
-3. :meth:`GFBEnv.finish_step` of each env (judge: outcome, stability, reward and termination; emit: its
-   observation and info), plus the time limit over the batch; Gymnasium's info arrays are built for the
-   whole batch (one conversion per value type, exactly ``VectorEnv._add_info``'s arrays).
+2. the plant: the integrator of every stepped env over the control interval, in one compiled batch
+   (:meth:`~gfb_env.integrator.BatchAdvance.run_prepared_each`; ``num_threads`` threads, default all
+   cores numba sees: ``num_threads - 1`` worker threads and this one claim the envs one at a time);
+3. :meth:`GFBEnv.finish_step` of each env as soon as its plant is done, in this thread while the
+   workers integrate the others (judge: outcome, stability, reward and termination; emit: its
+   observation and info), so the Python of the step overlaps its compiled part; then the time limit
+   over the batch; Gymnasium's info arrays are built for the whole batch (one conversion per value
+   type, exactly ``VectorEnv._add_info``'s arrays).  The results do not depend on the thread count
+   or on the order in which the envs finish (each env's finish uses its own state and generator).
 
 :meth:`GFBEnv.step` is the same three phases for one env.
 
@@ -44,7 +46,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from gfb_env.envs.base import GFBEnv, advance_plans
+from gfb_env.envs.base import GFBEnv, PlantResult
 from gfb_env.envs.run_up import RunUpEnv
 from gfb_env.envs.run_up_randomized import RunUpRandomizedEnv
 from gfb_env.envs.whirl_recovery import WhirlRecoveryEnv
@@ -327,14 +329,28 @@ class GFBVectorEnv(VectorEnv):
         envs = [self.envs[i] for i in stepped]
         rows = actions.tolist()  # each env's action as two Python floats (its own check is then cheap)
         plans = [env.plan_step(rows[i]) for i, env in zip(stepped, envs, strict=True)]
-        results = advance_plans(self._batch, plans)
-        infos = []
-        for i, env, plan, result in zip(stepped, envs, plans, results, strict=True):
-            obs, reward, terminated, _, info = env.finish_step(plan, result)
+        infos: list[dict] = [None] * len(plans)  # type: ignore[list-item]
+
+        def finish(p: int, result: PlantResult) -> None:
+            i = stepped[p]
+            obs, reward, terminated, _, info = envs[p].finish_step(plans[p], result)
             self._observations[i] = obs
             self._rewards[i] = reward
             self._terminations[i] = terminated
-            infos.append(info)
+            infos[p] = info
+
+        # the plant of every prepared plan in one batch; each env is finished as soon as its plant
+        # is (in no fixed order with 2+ threads: an env's finish uses its own state and generator
+        # only), while the others are still integrating
+        ready = [p for p, plan in enumerate(plans) if plan.call is not None]
+        for p, plan in enumerate(plans):
+            if plan.call is None:  # its preparation failed: the failure is its result
+                finish(p, plan.failure)
+        self._batch.run_prepared_each(
+            [plans[p].integrator for p in ready],
+            [plans[p].call for p in ready],
+            lambda k, result: finish(ready[k], result),
+        )
         self._elapsed_steps[stepped] += 1
         if self.max_episode_steps is not None:
             self._truncations[stepped] = self._elapsed_steps[stepped] >= self.max_episode_steps
@@ -415,6 +431,7 @@ class GFBVectorEnv(VectorEnv):
             setattr(env, name, v)
 
     def close_extras(self, **kwargs: Any) -> None:
+        self._batch.close()
         for env in self.envs:
             env.close()
 

@@ -1,16 +1,23 @@
 """Many :class:`~gfb_env.integrator.TrapezoidalIntegrator` calls in one compiled call:
-:class:`BatchAdvance`, its stacked workspace and the two batch kernels (parallel ``prange`` and serial
-``range``: numba's parallel launch costs ~50 us per call, so one thread or one env takes the serial
-one).  Both take the argument groups of :mod:`gfb_env.integrator.arguments`."""
+:class:`BatchAdvance`, its stacked workspace and the batch kernels (a parallel ``prange`` over worker
+slots that claim envs from an atomic work index, a serial ``range``: numba's parallel launch costs
+~50 us per call, so one thread or one env takes the serial one; and a GIL-free claiming kernel that
+Python threads call at once, for :meth:`BatchAdvance.run_prepared_each`).  They take the argument
+groups of :mod:`gfb_env.integrator.arguments`."""
 
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import wait as futures_wait
 from typing import Any
 
 import numba
 import numpy as np
-from numba import njit, prange
+from llvmlite import ir
+from numba import njit, prange, types
+from numba.extending import intrinsic
 
 from gfb_env import _kernels as K
 from gfb_env.integrator.arguments import (
@@ -66,11 +73,32 @@ def _advance_env(i, b, n_rows, sparse, size_tag):
     store_clock(c, clock)
 
 
+@intrinsic
+def _claim(typingctx, counter):
+    """``counter[0]`` before adding 1 to it, atomically (LLVM's ``atomicrmw add``, sequentially
+    consistent): the work index the threads of :func:`_advance_batch` take their envs from."""
+    if not (isinstance(counter, types.Array) and counter.dtype == types.int64):
+        return None
+
+    def codegen(context, builder, signature, args):
+        data = context.make_array(signature.args[0])(context, builder, args[0]).data
+        return builder.atomic_rmw("add", data, ir.Constant(ir.IntType(64), 1), "seq_cst")
+
+    return types.int64(counter), codegen
+
+
 @njit(parallel=True, cache=True)
-def _advance_batch(b, lu_static):
-    """:func:`_advance_env` of env i = 0..N-1 in a ``prange``.  A parallel loop takes arrays, not
-    tuples: ``b`` is unpacked by name before it and repacked by keyword inside (one BatchArrays per
-    env; numba refuses a name that BatchArrays lacks or misses), ``lu_static`` likewise."""
+def _advance_batch(b, lu_static, order, counter, n_workers):
+    """:func:`_advance_env` of envs ``order[0], order[1], ...`` claimed one at a time by ``n_workers``
+    workers (a ``prange`` over the workers; each takes the next env of the shared work index
+    ``counter[0]`` (0 on entry) when it is done with its last one).  Why not a ``prange`` over the envs:
+    numba's ``workqueue`` layer hands each thread a fixed, contiguous share of the iterations whatever
+    the chunk size, so the call waits for the thread whose envs cost most or that the OS preempted (on
+    a shared machine the second thread got 0.57 of a core); with the claim the envs flow to whichever
+    thread runs.  Each env is still one :func:`_advance_env` of its own rows, so the results do not
+    depend on the order, the worker or the thread count.  A parallel loop takes arrays, not tuples:
+    ``b`` is unpacked by name before it and repacked by keyword inside (numba refuses a name that
+    BatchArrays lacks or misses), ``lu_static`` likewise."""
     n_rows, sparse, size_tag = lu_static
     calls, y, ip, fp, sn, cs = b.calls, b.y, b.ip, b.fp, b.sn, b.cs
     Ad, Ap, Am, Er, Rr, Srr = b.Ad, b.Ap, b.Am, b.Er, b.Rr, b.Srr
@@ -82,13 +110,34 @@ def _advance_batch(b, lu_static):
         b.ext,
         b.shocks,
     )
-    for i in prange(calls.shape[0]):
+    n = order.shape[0]
+    for _w in prange(n_workers):
         env = BatchArrays(
             calls=calls, y=y, ip=ip, fp=fp, sn=sn, cs=cs, Ad=Ad, Ap=Ap, Am=Am, Er=Er, Rr=Rr, Srr=Srr,
             Dlu=Dlu, Dpiv=Dpiv, Uhat=Uhat, Yw=Yw, Slu=Slu, Spiv=Spiv, record_indices=record_indices,
             record_buffers=record_buffers, stats=stats, ext=ext, shocks=shocks,
         )  # fmt: skip
-        _advance_env(i, env, n_rows, sparse, size_tag)
+        j = _claim(counter)
+        while j < n:
+            _advance_env(order[j], env, n_rows, sparse, size_tag)
+            j = _claim(counter)
+
+
+@njit(nogil=True, cache=True)
+def _advance_claimed(b, lu_static, order, counter, done, limit):
+    """:func:`_advance_env` of the envs ``order[j]`` this thread claims from the shared work index
+    ``counter[0]``, at most ``limit`` of them, without the GIL (the threads of
+    :meth:`BatchAdvance.run_prepared_each` call it at once); after each env ``done[env]`` becomes 1
+    (an atomic add, after the env's rows are written: the caller may then read them)."""
+    n_rows, sparse, size_tag = lu_static
+    n = order.shape[0]
+    for _ in range(limit):
+        j = _claim(counter)
+        if j >= n:
+            return
+        k = order[j]
+        _advance_env(k, b, n_rows, sparse, size_tag)
+        _claim(done[k : k + 1])
 
 
 @njit(cache=True)
@@ -98,6 +147,12 @@ def _advance_batch_serial(b, lu_static):
     n_rows, sparse, size_tag = lu_static
     for i in range(b.calls.shape[0]):
         _advance_env(i, b, n_rows, sparse, size_tag)
+
+
+#: an env's cost in a call from its counts (``stats``: steps, rejections, Jacobians, factorisations,
+#: rhs calls, ...): the kernels' CPU us on the 31x7 grid (Jacobian 7.8, factorisation 15, rhs 0.88
+#: plus a block solve 2.35 per Newton iteration); only the order of the parallel call's claims uses it
+_COST_OF_COUNT = np.array([0.0, 0.0, 0.0, 7.8, 15.0, 3.2, 0.0, 0.0, 0.0])
 
 
 def _choose_threading_layer() -> None:
@@ -126,6 +181,7 @@ class _BatchWorkspace:
         self.shape_key = _shape_key(model)
         self.capacity, self.n_recorded = capacity, n_recorded
         self.kargs_of_slot: list[tuple | None] = [None] * N  # whose kernel args each row holds
+        self.cost = np.zeros(N)  # each row's cost in its last call (:data:`_COST_OF_COUNT`)
         self.lu_static = (model.grid.n_rows, model.sparse_offdiagonal_blocks, K.size_tag(m))
         self.stacked = BatchArrays(
             calls=z(N, CALL_DTYPE),
@@ -179,6 +235,7 @@ class BatchAdvance:
     def __init__(self, num_threads: int | None = None):
         self.num_threads = num_threads
         self._ws: _BatchWorkspace | None = None
+        self._workers: tuple[int, int, ThreadPoolExecutor] | None = None  # (pid, workers, pool)
 
     @property
     def num_threads(self) -> int:
@@ -254,12 +311,112 @@ class BatchAdvance:
         _choose_threading_layer()
         if n == 0:
             return []
+        staged = self._stage(integs, calls)
+        if staged is None:
+            return [self._one(it, c) for it, c in zip(integs, calls, strict=True)]
+        b, ws, key = staged
+        threads = min(self._num_threads, n)
+        if threads == 1:
+            self._launch(_advance_batch_serial, key, b, ws.lu_static)
+        else:
+            # the costliest envs of the last call first (longest processing time first: the last
+            # env claimed is then a cheap one, so the threads end together)
+            order = np.argsort(-ws.cost[:n], kind="stable")
+            counter = np.zeros(1, np.int64)
+            old_threads = numba.get_num_threads()
+            numba.set_num_threads(threads)
+            try:
+                self._launch(_advance_batch, key, b, ws.lu_static, order, counter, threads)
+            finally:
+                numba.set_num_threads(old_threads)
+        ws.cost[:n] = b.stats @ _COST_OF_COUNT
+        return [self._result(b, k, it, c) for k, (it, c) in enumerate(zip(integs, calls, strict=True))]
+
+    def run_prepared_each(
+        self,
+        integs: list[TrapezoidalIntegrator],
+        calls: list[PreparedCall],
+        each: Callable[[int, AdvanceResult], None],
+    ) -> None:
+        """:meth:`run_prepared`, handing each result to ``each(k, result)`` in the calling thread as
+        soon as call ``k`` is integrated, while the other calls still are: the caller's Python work
+        on a finished env (the vector env's judge, sensors and observation) overlaps the compiled
+        work on the others, so both cores work through the whole step, not only its compiled part.
+        The compiled part runs in ``num_threads - 1`` worker threads (a pool kept by this object)
+        and in the calling thread whenever it has no result to hand on; each thread claims the next
+        env (costliest of the last call first) from an atomic work index.  With one thread or one
+        call the results come in order after :meth:`run_prepared`; otherwise in the order they are
+        done, each still bit for bit the one-by-one result (the calls are independent).  If
+        ``each`` raises, the workers' calls are waited for, then it propagates."""
+        n = len(calls)
+        threads = min(self._num_threads, n)
+        staged = self._stage(integs, calls) if threads > 1 else None
+        if staged is None:
+            for k, r in enumerate(self.run_prepared(integs, calls)):
+                each(k, r)
+            return
+        b, ws, key = staged
+        order = np.argsort(-ws.cost[:n], kind="stable")
+        counter = np.zeros(1, np.int64)
+        done = np.zeros(n, np.int64)
+        lu_static = ws.lu_static
+
+        def claim(limit: int) -> None:
+            self._launch(_advance_claimed, key, b, lu_static, order, counter, done, limit)
+
+        workers = [self._pool(threads - 1).submit(claim, n) for _ in range(threads - 1)]
+        pending = list(range(n))
+        try:
+            while pending:
+                ready = [k for k in pending if done[k]]
+                if ready:
+                    for k in ready:
+                        pending.remove(k)
+                        each(k, self._result(b, k, integs[k], calls[k]))
+                elif counter[0] < n:
+                    claim(1)  # nothing to hand on: integrate one env here
+                else:  # the workers hold the last envs
+                    futures_wait(workers, timeout=2e-4)
+                    for w in workers:
+                        if w.done() and w.exception() is not None:
+                            raise w.exception()
+        finally:
+            futures_wait(workers)
+        ws.cost[:n] = b.stats @ _COST_OF_COUNT
+
+    def close(self) -> None:
+        """Stop the worker threads (a later :meth:`run_prepared_each` starts new ones)."""
+        pool, self._workers = self._workers, None
+        if pool is not None and pool[0] == os.getpid():
+            pool[2].shutdown(wait=False)
+
+    def __getstate__(self) -> dict:
+        # a copy or a pickle holds no threads (a thread pool can be neither): it starts its own
+        return {**self.__dict__, "_workers": None}
+
+    def _pool(self, workers: int) -> ThreadPoolExecutor:
+        """The worker threads of :meth:`run_prepared_each` (a new pool after a fork or a change of
+        the thread count: a forked child has no threads)."""
+        pool = self._workers
+        if pool is None or pool[0] != os.getpid() or pool[1] != workers:
+            if pool is not None and pool[0] == os.getpid():
+                pool[2].shutdown(wait=False)
+            pool = self._workers = (os.getpid(), workers, ThreadPoolExecutor(workers, "gfb-batch"))
+        return pool[2]
+
+    def _stage(
+        self, integs: list[TrapezoidalIntegrator], calls: list[PreparedCall]
+    ) -> tuple[BatchArrays, _BatchWorkspace, tuple] | None:
+        """Every call's scalars and state into the stacked workspace (the batch arrays, the
+        workspace and the compiled entry's key), or None when the integrators' grids or recorded
+        entries differ (then they are advanced one by one)."""
+        n = len(calls)
         model0 = integs[0].model
         key = integs[0]._shape_key
         rec_key = integs[0]._record_key
         rec_idx = calls[0].recording.indices
         if any(it._shape_key != key or it._record_key != rec_key for it in integs):
-            return [self._one(it, c) for it, c in zip(integs, calls, strict=True)]
+            return None
         ws = self._ws
         if ws is None or not ws.fits(n, model0, len(rec_idx)):
             ws = self._ws = _BatchWorkspace(
@@ -285,31 +442,17 @@ class BatchAdvance:
                 b.record_buffers[k, 0] = c.rec_buf[0]
             if c.forcing is not None:
                 b.shocks[k, : len(c.forcing.shocks)] = c.forcing.shocks
-        threads = min(self._num_threads, n)
-        key = (ws.lu_static, len(rec_idx))
-        if threads == 1:
-            self._launch(_advance_batch_serial, key, b, ws.lu_static)
-        else:
-            old_threads = numba.get_num_threads()
-            numba.set_num_threads(threads)
-            # many envs of unequal cost: one at a time to each thread (dynamic scheduling costs ~30 us
-            # more per launch, measured; with a few envs per thread the static split is cheaper)
-            old_chunk = numba.set_parallel_chunksize(1 if n > 4 * threads else 0)
-            try:
-                self._launch(_advance_batch, key, b, ws.lu_static)
-            finally:
-                numba.set_parallel_chunksize(old_chunk)
-                numba.set_num_threads(old_threads)
-        clocks = b.calls[list(CLOCK_FIELDS)].tolist()
-        codes = b.calls["status"].tolist()
-        counts, exts = b.stats.tolist(), b.ext.tolist()
-        out = []
-        for k, (it, c) in enumerate(zip(integs, calls, strict=True)):
-            st, Yk = c.st, Y[k]
-            st.s[:], st.f[:], st.fprev[:], st.sprev[:], st.sprev2[:] = Yk
-            rec_buf = b.record_buffers[k, : c.rec_buf.shape[0]]
-            out.append(it._finish(c, codes[k], clocks[k], counts[k], exts[k], rec_buf, False))
-        return out
+        return b, ws, (ws.lu_static, len(rec_idx))
+
+    @staticmethod
+    def _result(b: BatchArrays, k: int, it: TrapezoidalIntegrator, c: PreparedCall) -> AdvanceResult:
+        """Row ``k``'s state back into its call's arrays, and its integrator's finish."""
+        st = c.st
+        st.s[:], st.f[:], st.fprev[:], st.sprev[:], st.sprev2[:] = b.y[k]
+        clock = b.calls[list(CLOCK_FIELDS)][k : k + 1].tolist()[0]
+        code = b.calls["status"][k : k + 1].tolist()[0]
+        rec_buf = b.record_buffers[k, : c.rec_buf.shape[0]]
+        return it._finish(c, code, clock, b.stats[k].tolist(), b.ext[k].tolist(), rec_buf, False)
 
     @staticmethod
     def _launch(kernel: Any, key: tuple, *args: Any) -> None:

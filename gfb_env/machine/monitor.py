@@ -54,6 +54,7 @@ observation does not use it.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -206,9 +207,10 @@ class VibrationMonitor:
     @property
     def band_ratios(self) -> np.ndarray:
         """The K ratios of the band's columns (the band's middle if K = 1)."""
-        lo, hi = self.subsynchronous_band_ratio
-        k = self.subsynchronous_frequencies
-        return np.array([0.5 * (lo + hi)]) if k == 1 else np.linspace(lo, hi, k)
+        cols, _ = _ratios(
+            self.subsynchronous_band_ratio, self.subsynchronous_frequencies, self.ratio_scan_step
+        )
+        return cols.copy()
 
     @property
     def min_samples(self) -> int:
@@ -243,15 +245,14 @@ class VibrationMonitor:
         if n < self.min_samples:
             raise ValueError(f"time_s must have at least {self.min_samples} samples, got {n}")
         x, y = _series("x_um", x_um, n), _series("y_um", y_um, n)
-        theta = np.unwrap(_series("rotation_angle_rad", rotation_angle_rad, n))
+        theta = _unwrap(_series("rotation_angle_rad", rotation_angle_rad, n))
         sigma = nonnegative("noise_um", noise_um)
-        dt = np.diff(t)
-        if not np.all(dt > 0):
+        if not (t[1:] > t[:-1]).all():  # (np.diff's values, without its Python layer)
             raise ValueError("time_s must be strictly increasing")
-        dth = np.diff(theta)
-        if np.any(dth < 0):
+        dth = theta[1:] - theta[:-1]
+        if (dth < 0).any():
             raise ValueError("rotation_angle_rad must not decrease (the rotor turns one way)")
-        if np.max(dth) > 0.5 * math.pi:
+        if dth.max() > 0.5 * math.pi:
             raise ValueError(
                 "rotation_angle_rad moves more than a quarter revolution between samples (2x above Nyquist)"
             )
@@ -260,7 +261,8 @@ class VibrationMonitor:
         revolutions = sweep / (2.0 * math.pi)
         omega = sweep / duration  # mean running speed, rad/s
         speed_rpm = omega * 60.0 / (2.0 * math.pi)
-        data = np.column_stack([x, y])
+        data = np.empty((n, 2))
+        data[:, 0], data[:, 1] = x, y
         if revolutions < self.min_revolutions:
             return self._too_slow(t, data, speed_rpm, revolutions, n)
 
@@ -268,21 +270,31 @@ class VibrationMonitor:
         tm = 0.5 * (t[0] + t[-1])
         s = (t - tm) / duration  # in [-1/2, 1/2]
         ph = theta - math.radians(self.keyphasor_angle_deg)
-        ratios = self.band_ratios
+        ratios, ratios_scan = _ratios(
+            self.subsynchronous_band_ratio, self.subsynchronous_frequencies, self.ratio_scan_step
+        )
         band_phase = np.outer(omega * (t - t[0]), ratios)  # (n, K)
-        band = np.empty((n, 2 * len(ratios)))
+        k2 = 2 * len(ratios)
+        # the columns written into one array (what np.column_stack builds, without its copies)
+        A = np.empty((n, _N_NUISANCE + k2))
+        A[:, 0] = 1.0
+        A[:, 1] = s
+        A[:, 2], A[:, 3] = np.cos(ph), np.sin(ph)
+        ph2 = 2 * ph
+        A[:, 4], A[:, 5] = np.cos(ph2), np.sin(ph2)
+        band = A[:, _N_NUISANCE:]
         band[:, 0::2], band[:, 1::2] = np.cos(band_phase), np.sin(band_phase)
-        A = np.column_stack([np.ones(n), s, np.cos(ph), np.sin(ph), np.cos(2 * ph), np.sin(2 * ph), band])
+        band = band.copy()  # (the band columns alone, contiguous, as before)
         q, r = np.linalg.qr(A)
         coef = np.linalg.solve(r, q.T @ data)  # (p, 2)
         r_inv = np.linalg.solve(r, np.eye(r.shape[0]))
         cov = r_inv @ r_inv.T  # (A^T A)^-1: multiply by sigma^2
         fitted = A @ coef
-        residual_rms = np.sqrt(np.mean((data - fitted) ** 2, axis=0))
+        # (np.mean's sum and division by n, without its Python layer)
+        residual_rms = np.sqrt(np.add.reduce((data - fitted) ** 2, axis=0) / n)
 
         # --- the dominant sub-synchronous ratio: one sinusoid scanned over the band ------------
         nuisance_q = q[:, :_N_NUISANCE]  # an orthonormal basis of the first 6 columns (QR is nested)
-        ratios_scan = _scan_grid(self.subsynchronous_band_ratio, self.ratio_scan_step)
         power = _single_frequency_power(omega * (t - t[0]), ratios_scan, nuisance_q, data)  # (R, 2)
 
         probes = []
@@ -357,9 +369,21 @@ def _series(name: str, v: np.ndarray, n: int | None = None) -> np.ndarray:
         raise ValueError(f"{name} must be one-dimensional, got shape {a.shape}")
     if n is not None and len(a) != n:
         raise ValueError(f"{name} must have as many samples as time_s ({n}), got {len(a)}")
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         raise ValueError(f"{name} must be finite")
     return a
+
+
+def _unwrap(p: np.ndarray) -> np.ndarray:
+    """``np.unwrap(p)`` of a finite 1-d series, bit for bit: where no step reaches pi it adds zero
+    corrections (``p[1:] + 0.0``, which only turns a -0.0 into 0.0), so that case skips the rest of
+    its work (a monitor's angles turn < a quarter revolution per sample)."""
+    dd = p[1:] - p[:-1]
+    if (np.abs(dd) < math.pi).all():
+        up = p.copy()
+        up[1:] += 0.0
+        return up
+    return np.unwrap(p)
 
 
 def _vector(a: float, b: float, cov2: np.ndarray, sigma: float) -> tuple[float, float, float, float]:
@@ -385,8 +409,21 @@ def _band_basis(band: np.ndarray, nuisance_q: np.ndarray) -> np.ndarray:
     (orthonormal ``nuisance_q``); directions of the band (almost) inside the nuisance span are dropped."""
     perp = band - nuisance_q @ (nuisance_q.T @ band)
     u, sv, _ = np.linalg.svd(perp, full_matrices=False)
-    scale = np.linalg.norm(band, axis=0).max()
+    # the columns' norms as np.linalg.norm(band, axis=0) computes them for real input (the root of
+    # the summed squares), without its Python layer
+    scale = np.sqrt(np.add.reduce(band * band, axis=0)).max()
     return u[:, sv > 1e-8 * scale]
+
+
+@functools.lru_cache(maxsize=16)
+def _ratios(band: tuple[float, float], k: int, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """The band's K column ratios (its middle if K = 1) and the dominant-ratio scan grid of a monitor
+    configuration, computed once (read-only: every measure uses them)."""
+    lo, hi = band
+    cols = np.array([0.5 * (lo + hi)]) if k == 1 else np.linspace(lo, hi, k)
+    scan = _scan_grid(band, step)
+    cols.flags.writeable = scan.flags.writeable = False
+    return cols, scan
 
 
 def _scan_grid(band: tuple[float, float], step: float) -> np.ndarray:

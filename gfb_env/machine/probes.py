@@ -121,6 +121,13 @@ class ProximityProbes:
         b = np.radians([self.x_angle_deg, self.y_angle_deg])
         return np.stack([np.sin(b), -np.cos(b)], axis=1)
 
+    @cached_property
+    def _inverse_directions(self) -> np.ndarray:
+        """``np.linalg.inv(directions)``, computed once (read-only: every step's errors use it)."""
+        inv = np.linalg.inv(self.directions)
+        inv.flags.writeable = False
+        return inv
+
     def read_um(
         self, xi_um: np.ndarray | float, eta_um: np.ndarray | float, bias_um: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -201,7 +208,7 @@ class ProximityProbes:
         monitor's sample readings (:mod:`gfb_env.envs.interface_v2`)."""
         xi_um, eta_um = np.asarray(xi_um, dtype=float), np.asarray(eta_um, dtype=float)
         n = len(xi_um)
-        inv = np.linalg.inv(self.directions)
+        inv = self._inverse_directions
         bias_xe = inv @ np.asarray(bias_um, dtype=float)
         if noise is None:
             zero = np.zeros(2)

@@ -37,6 +37,7 @@ from gfb_env.envs.retired import (
     RETIRED_V1_IDS,
     RetiredEntryPoint,
     RetiredTaskError,
+    make_env,
     make_retired,
     make_retired_vec,
 )
@@ -73,6 +74,7 @@ __all__ = [
     "RetiredTaskError",
     "make_retired",
     "make_retired_vec",
+    "make_env",
     "MACHINE_V1",
     "V1_TASK",
     "V1_DAMPING_GAIN_RANGE",

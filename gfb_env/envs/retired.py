@@ -38,6 +38,7 @@ __all__ = [
     "RetiredEntryPoint",
     "make_retired",
     "make_retired_vec",
+    "make_env",
 ]
 
 #: retired id -> the id to use instead (the v2 id of the same task)
@@ -153,3 +154,10 @@ def make_retired_vec(
         wrappers=wrappers,
         **kwargs,
     )
+
+
+def make_env(env_id: str, **kwargs: Any) -> gym.Env:
+    """``gymnasium.make(env_id, **kwargs)``, or :func:`make_retired` for a retired v1 id: for the tools that
+    replay records as well as play the current tasks (the benchmark runner, the evaluation of the committed
+    policies, the regression digests).  A v1 env so built is a record, not a benchmark."""
+    return make_retired(env_id, **kwargs) if env_id in RETIRED_V1_IDS else gym.make(env_id, **kwargs)

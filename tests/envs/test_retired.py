@@ -21,6 +21,7 @@ from gfb_env.envs import (
     V1_TASK,
     V2_ENV_IDS,
     RetiredTaskError,
+    make_env,
     make_retired,
     make_retired_vec,
 )
@@ -104,3 +105,15 @@ def test_make_retired_vec_is_the_native_vector_env_of_the_v1_task():
         assert "damping_gain" in info
         venv.close()
     assert type(make_retired_vec(env_id, num_envs=2)).__name__ == "RunUpVectorEnv"
+
+
+def test_make_env_plays_a_current_id_and_replays_a_retired_v1_id():
+    """The tools that replay records (benchmark runner, evaluation, digests) take either; a v0 id still
+    refuses, since its code is gone."""
+    current = make_env(ENV_IDS[0])
+    assert current.spec.id == ENV_IDS[0] and current.unwrapped.interface is not None
+    record = make_env(RETIRED_V1_IDS[0], max_episode_steps=3)
+    assert record.spec.id == RETIRED_V1_IDS[0] and record.unwrapped.interface is None
+    assert record.spec.max_episode_steps == 3
+    with pytest.raises(RetiredTaskError, match="Use gfb_env/RunUp-v2"):
+        make_env("gfb_env/RunUp-v0")

@@ -7,14 +7,18 @@ the same seeds, and normalises each episode's return with the same seed's naive 
 (``gfb_experiments.benchmark_stats.normalized_scores``): 0 = naive, 1 = oracle.  So every task needs
 exactly one ``naive`` and one ``oracle`` entry.
 
-Registering an agent (the interface for the v1 oracle, the rules and the learned agents)::
+Registering an agent (the interface for the oracle, the rules and the learned agents)::
 
-    from gfb_agents.ladder import AgentEntry, register, V1_TASKS
+    from gfb_agents.ladder import AgentEntry, register, V2_TASKS
     # make_oracle(env) -> Policy; supersede=True takes the tasks from the built-in oracle_v1
-    register(AgentEntry("my_oracle", "oracle", V1_TASKS, make_oracle), supersede=True)
-    register(AgentEntry("identify_shock", "rule", ("gfb_env/RunUpRandomized-v1",), make_my_rule))
-    register_learned("runs/RunUpRandomized-v1_sac", name="sac")   # a gfb_agents.learned.train output
-    policy = build("margin_search", gym.make("gfb_env/RunUp-v1"))  # any registered agent, for a script
+    register(AgentEntry("my_oracle", "oracle", V2_TASKS, make_oracle), supersede=True)
+    register(AgentEntry("identify_shock", "rule", ("gfb_env/RunUpRandomized-v2",), make_my_rule))
+    register_learned("runs/RunUpRandomized-v2_sac", name="sac")   # a gfb_agents.learned.train output
+    policy = build("margin_search", gym.make("gfb_env/RunUp-v2"))  # any registered agent, for a script
+
+The ladder also keeps the entries of the retired v1 ids (:data:`V1_TASKS`) for the record: the committed v1
+policies and ``results/benchmark_v1`` replay on envs built by :func:`gfb_env.envs.retired.make_retired`
+(their info and reward leak the hidden plant: not a benchmark).
 
 A factory is called as ``factory(env)`` with a fresh env of the task (``gymnasium.make(task,
 **env_kwargs)``, not yet reset) -- the very env the agent's episodes are then played on, so an oracle may
@@ -78,11 +82,15 @@ __all__ = [
 KINDS = ("naive", "rule", "oracle", "learned")
 
 try:  # the task list has one owner (the retired v0 ids are no task of the ladder)
-    from gfb_env.envs import ENV_IDS, V2_ENV_IDS
+    from gfb_env.envs import RETIRED_V1_IDS, V2_ENV_IDS
 
-    V1_TASKS: tuple[str, ...] = tuple(t for t in ENV_IDS if t.endswith("-v1"))
-    #: the v2 ids (issue 19): the same plants with the information contract and the monitor's observation
+    #: the v2 ids (issue 19), the current tasks: the same plants with the information contract and the
+    #: monitor's observation
     V2_TASKS: tuple[str, ...] = tuple(V2_ENV_IDS)
+    #: the retired v1 ids (issue 19: their info and reward leak the hidden plant): the ladder keeps their
+    #: entries for the record (the committed v1 policies, ``results/benchmark_v1``), played on envs built by
+    #: :func:`gfb_env.envs.retired.make_retired`; not a benchmark
+    V1_TASKS: tuple[str, ...] = tuple(RETIRED_V1_IDS)
 except ImportError:  # pragma: no cover - gfb_env is a dependency
     V1_TASKS = V2_TASKS = ()
 
@@ -198,7 +206,8 @@ def _make_recovery_reset(env) -> Policy:
 
 
 def make_commanded_oracle(env) -> Policy:
-    """The v1 tasks' oracle (:class:`gfb_agents.oracles.commanded.CommandedOracle`)."""
+    """The commanded-speed tasks' oracle (:class:`gfb_agents.oracles.commanded.CommandedOracle`; v2 and the
+    retired v1)."""
     from gfb_agents.oracles.commanded import CommandedOracle
 
     return CommandedOracle(env)
@@ -256,7 +265,7 @@ def register(entry: AgentEntry, replace: bool = False, supersede: bool = False) 
 
     ``supersede=True`` (for a naive or oracle entry): every other entry of the same kind gives up
     ``entry.tasks`` (and is removed if no task is left), so each task keeps exactly one naive and one
-    oracle -- e.g. an oracle registered for RunUp-v1 takes that task from the built-in ``oracle_v1``,
+    oracle -- e.g. an oracle registered for RunUp-v2 takes that task from the built-in ``oracle_v1``,
     which keeps the others."""
     _ensure_defaults()
     if entry.name in LADDER and not replace:
@@ -270,7 +279,7 @@ def register(entry: AgentEntry, replace: bool = False, supersede: bool = False) 
 
 def set_tasks(name: str, tasks: Iterable[str]) -> None:
     """Restrict (or extend) the tasks of the registered entry ``name``; no task left removes it (e.g.
-    ``set_tasks("margin_search", ["gfb_env/RunUp-v1"])`` keeps a rule off the other tasks)."""
+    ``set_tasks("margin_search", ["gfb_env/RunUp-v2"])`` keeps a rule off the other tasks)."""
     _ensure_defaults()
     if name not in LADDER:
         raise KeyError(f"no registered agent {name!r}")
@@ -293,10 +302,10 @@ def registered() -> dict[str, AgentEntry]:
 
 
 def build(name: str, env, run: int = 0) -> Policy:
-    """The registered agent ``name`` built for ``env`` (a fresh env of a v1 task, not yet reset; run
+    """The registered agent ``name`` built for ``env`` (a fresh env of a task, not yet reset; run
     ``run`` of a learned agent): the one factory of every agent, for the benchmark and for scripts alike.
     An entry's :attr:`AgentEntry.tasks` are the tasks the benchmark plays it on; a script may build a rule
-    for another v1 task (e.g. to compare rules across tasks).  LookupError naming the known agents if
+    for another task (e.g. to compare rules across tasks).  LookupError naming the known agents if
     ``name`` is not registered."""
     _ensure_defaults()
     if name not in LADDER:

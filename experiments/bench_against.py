@@ -5,11 +5,13 @@ subprocess whose ``gfb_env`` and ``gfb_agents`` come from one checkout (a folder
 ``gfb_env/`` and ``agents/`` put first on ``PYTHONPATH``; the numba caches are warmed outside the timing),
 alternating this checkout and OLD_CHECKOUT ``--rounds`` times, so that the slow drift of a shared machine's
 load falls on both alike; the median of the rounds is reported.  Both sides play the same public
-interface on their own code of the v1 tasks: ``gymnasium.make_vec(id, num_envs=16)`` (the native vector
-env) near equilibrium (the start of RunUp-v1, speed held, D_W = 1) and in a developed whirl (the start of
-WhirlRecovery-v1, speed and the whirl's damping held), one env near equilibrium, Gymnasium's
-AsyncVectorEnv with 2 workers, and PPO (the same hyperparameters on both sides: the zoo's RunUp-v1 entry of
-this checkout, VecNormalize, one torch thread) on the native vector env through the SB3 adapter.
+interface, each on its own benchmark tasks (the newest version of RunUp and WhirlRecovery its checkout
+registers: this checkout's v2 ids; the reference 09cb50e's v1 ids, retired since): ``gymnasium.make_vec(id,
+num_envs=16)`` (the native vector env) near equilibrium (the start of RunUp, speed held, D_W = 1) and in a
+developed whirl (the start of WhirlRecovery, speed and the whirl's damping held), one env near equilibrium,
+Gymnasium's AsyncVectorEnv with 2 workers, and PPO (the same hyperparameters on both sides: the zoo's
+RunUp-v2 entry of this checkout, which is its RunUp-v1 entry, VecNormalize, one torch thread) on the native
+vector env through the SB3 adapter.
 
 The reference of issue 20 is commit 09cb50e (``git worktree add /tmp/base 09cb50e``).  The last line is
 JSON: ``native_vector_steps_per_s``, ``against_native_vector_steps_per_s``, ``speedup_vs_against`` (near
@@ -33,9 +35,15 @@ CHILD = r"""
 import json, os, sys, time
 import numpy as np
 import gymnasium as gym
-import gfb_env.envs  # noqa: F401
+from gfb_env.envs import ENV_IDS
 a = json.loads(sys.argv[1])
 kind, steps, seed = a["kind"], a["env_steps"], a["seed"]
+
+def newest(task):  # each side plays its own benchmark task: the newest version its checkout registers
+    ids = [i for i in ENV_IDS if i.split("/")[1].split("-v")[0] == task]
+    return max(ids, key=lambda i: int(i.rsplit("-v", 1)[1]))
+
+RU, WR = newest("RunUp"), newest("WhirlRecovery")
 
 def hold(env_id):
     if "WhirlRecovery" not in env_id:
@@ -59,17 +67,17 @@ def vector_rate(envs, action, n_steps):
     return n * batches / (time.perf_counter() - t0)
 
 if kind in ("native", "whirl"):
-    env_id = "gfb_env/RunUp-v1" if kind == "native" else "gfb_env/WhirlRecovery-v1"
+    env_id = RU if kind == "native" else WR
     envs = gym.make_vec(env_id, num_envs=16)
     rate = vector_rate(envs, hold(env_id), steps if kind == "native" else max(48, steps // 2))
     envs.close()
 elif kind == "async":
-    envs = gym.make_vec("gfb_env/RunUp-v1", num_envs=2, vectorization_mode="async")
-    rate = vector_rate(envs, hold("gfb_env/RunUp-v1"), steps)
+    envs = gym.make_vec(RU, num_envs=2, vectorization_mode="async")
+    rate = vector_rate(envs, hold(RU), steps)
     envs.close()
 elif kind == "single":
-    env = gym.make("gfb_env/RunUp-v1")
-    act = hold("gfb_env/RunUp-v1")
+    env = gym.make(RU)
+    act = hold(RU)
     env.reset(seed=seed)
     env.step(act)
     t0 = time.perf_counter()
@@ -89,7 +97,7 @@ elif kind == "ppo":
         from gfb_agents.vec_env import GFBSB3VecEnv
     torch.set_num_threads(1)
     hp = a["ppo"]
-    venv = VecNormalize(VecMonitor(GFBSB3VecEnv(gym.make_vec("gfb_env/RunUp-v1", num_envs=hp["n_envs"]))),
+    venv = VecNormalize(VecMonitor(GFBSB3VecEnv(gym.make_vec(RU, num_envs=hp["n_envs"]))),
                         gamma=hp["kwargs"].get("gamma", 0.99), **hp["normalize"])
     venv.seed(seed)
     model = PPO(hp["policy"], venv, seed=seed, device="cpu", verbose=0, **hp["kwargs"])

@@ -3,10 +3,10 @@
 Vector throughput, in one run on the same tasks, seeds and held action: env steps per second of one env,
 Gymnasium's SyncVectorEnv, AsyncVectorEnv (2 worker processes), SB3's SubprocVecEnv (2 workers) and the
 native vector env (:class:`gfb_env.envs.vector.GFBVectorEnv`, default threads) at N = 2, 8, 16, 32, with
-their ratios to one env, at two operating points: near equilibrium (the start of RunUp-v1, speed held,
-D_W = 1) and in a developed whirl (the start of WhirlRecovery-v1, speed and the whirl's damping held).
+their ratios to one env, at two operating points: near equilibrium (the start of RunUp-v2, speed held,
+D_W = 1) and in a developed whirl (the start of WhirlRecovery-v2, speed and the whirl's damping held).
 Then what limits the native env (N = 16: wall time of its compiled batch call per env step with 1 and 2
-threads, the Python around it, the parallel efficiency) and PPO's training throughput (RunUp-v1, the zoo's
+threads, the Python around it, the parallel efficiency) and PPO's training throughput (RunUp-v2, the zoo's
 hyperparameters) on SB3's DummyVecEnv and on the native vector env, with the wall time of 1M steps.
 Without ``--quick`` also, per registered task on one core, env steps/s and simulated seconds per wall
 second under a seeded random policy, and full scripted and worst-case episodes.
@@ -53,7 +53,8 @@ def _episode(env: gym.Env, policy, seed: int, max_steps: int | None = None) -> d
         if term or trunc or (max_steps is not None and n >= max_steps):
             break
     wall = time.perf_counter() - t0
-    sim_s = info["time_s"]
+    # the simulated time of the actual plant (the v2 info carries no true time: it tells the clearance)
+    sim_s = u.episode.bearing.seconds(u._integ.tau)
     return {
         "steps": n,
         "wall_s": wall,
@@ -62,7 +63,8 @@ def _episode(env: gym.Env, policy, seed: int, max_steps: int | None = None) -> d
         "sim_s": sim_s,
         "sim_s_per_wall_s": sim_s / wall,
         "return": ret,
-        "reason": info["termination_reason"] or ("time_limit" if n >= env.spec.max_episode_steps else "cut"),
+        "reason": info.get("termination_reason")
+        or ("time_limit" if n >= env.spec.max_episode_steps else "cut"),
         "speed_rpm": info["speed_rpm"],
     }
 
@@ -70,10 +72,10 @@ def _episode(env: gym.Env, policy, seed: int, max_steps: int | None = None) -> d
 VECTOR_NS = (2, 8, 16, 32)
 #: the two operating points of the vector throughput runs: (task, what is held)
 SCENARIOS = {
-    # the start of RunUp-v1 (equilibrium at the lowest speed), speed held, D_W = 1 (action 0)
-    "equilibrium": "gfb_env/RunUp-v1",
-    # the start of WhirlRecovery-v1 (a developed whirl above Lambda_c), speed and the whirl's damping held
-    "whirl": "gfb_env/WhirlRecovery-v1",
+    # the start of RunUp-v2 (equilibrium at the lowest speed), speed held, D_W = 1 (action 0)
+    "equilibrium": "gfb_env/RunUp-v2",
+    # the start of WhirlRecovery-v2 (a developed whirl above Lambda_c), speed and the whirl's damping held
+    "whirl": "gfb_env/WhirlRecovery-v2",
 }
 
 
@@ -292,7 +294,7 @@ def vector_throughput(scenario: str, env_steps: int, seed: int, ns: tuple[int, .
 
 
 def ppo_throughput(vec_env: str, n_envs: int, timesteps: int, seed: int) -> dict:
-    """PPO (the zoo's RunUp-v1 hyperparameters, VecNormalize, one torch thread as ``agents.train``)
+    """PPO (the zoo's RunUp-v2 hyperparameters, VecNormalize, one torch thread as ``agents.train``)
     for ``timesteps`` env steps on ``vec_env``: env steps/s of the whole training loop (rollouts and
     updates) and the extrapolated wall time of 1M steps."""
     import torch
@@ -301,7 +303,7 @@ def ppo_throughput(vec_env: str, n_envs: int, timesteps: int, seed: int) -> dict
 
     from gfb_agents.learned.train import _split_hyperparams, load_hyperparams, make_vec_env_for
 
-    env_id = "gfb_env/RunUp-v1"
+    env_id = "gfb_env/RunUp-v2"
     torch.set_num_threads(1)
     zoo, kwargs = _split_hyperparams(load_hyperparams("ppo", env_id))
     venv = make_vec_env_for(env_id, n_envs, seed, None, {}, vec_env=vec_env)
@@ -329,7 +331,7 @@ def profile_single_step(steps: int, seed: int, top: int = 25) -> str:
     import io
     import pstats
 
-    env = gym.make("gfb_env/RunUp-v1")
+    env = gym.make("gfb_env/RunUp-v2")
     a = np.zeros(2, np.float32)
     env.reset(seed=seed)
     env.step(a)
@@ -438,23 +440,23 @@ def main() -> None:
             results["single_core"][env_id] = r
             rows.append((env_id, "random", r))
             env.close()
-        env = gym.make("gfb_env/RunUp-v1")
+        env = gym.make("gfb_env/RunUp-v2")
         full = _episode(env, lambda u: u.scripted_action(), args.seed)
-        rows.append(("gfb_env/RunUp-v1", "scripted (full)", full))
+        rows.append(("gfb_env/RunUp-v2", "scripted (full)", full))
         results["runup_scripted_episode"] = full
         worst = _episode(env, lambda u: np.array([1.0, -1.0], np.float32), args.seed)
-        rows.append(("gfb_env/RunUp-v1", "a=[1,-1] (full)", worst))
+        rows.append(("gfb_env/RunUp-v2", "a=[1,-1] (full)", worst))
         results["runup_worst_episode"] = worst
         env.close()
-        env = gym.make("gfb_env/WhirlRecovery-v1")
+        env = gym.make("gfb_env/WhirlRecovery-v2")
         rec = _episode(env, lambda u: u.scripted_action(), args.seed)
-        rows.append(("gfb_env/WhirlRecovery-v1", "scripted (full)", rec))
+        rows.append(("gfb_env/WhirlRecovery-v2", "scripted (full)", rec))
         results["whirl_recovery_scripted_episode"] = rec
         # worst case for wall time: a developed whirl for a whole episode (speed held, optimum damping)
         whirl = _episode(
             env, lambda u: np.array([0.0, u.action_from_damping(u.whirl_damping)], np.float32), args.seed
         )
-        rows.append(("gfb_env/WhirlRecovery-v1", "hold whirl (full)", whirl))
+        rows.append(("gfb_env/WhirlRecovery-v2", "hold whirl (full)", whirl))
         results["whirl_held_episode"] = whirl
         env.close()
         print(
@@ -509,7 +511,7 @@ def main() -> None:
     )
 
     if ppo_steps > 0:
-        log(f"\nPPO training throughput (RunUp-v1, zoo hyperparameters, {ppo_steps} timesteps):")
+        log(f"\nPPO training throughput (RunUp-v2, zoo hyperparameters, {ppo_steps} timesteps):")
         results["ppo"] = []
         for vec_env, n in (("dummy", 2), ("native", 2), ("native", 16)):
             r = ppo_throughput(vec_env, n, ppo_steps, args.seed)

@@ -3,7 +3,7 @@
 The compiled batch (:class:`gfb_env.integrator.BatchAdvance`) selects numba's ``workqueue`` layer unless
 ``NUMBA_THREADING_LAYER`` is set (``docs/envs.md`` says why: GNU OpenMP's workers spin under load, and a
 process forked after an OpenMP batch dies).  This measures what that costs on an idle machine: for each
-layer, in a fresh process (the layer is fixed at the first parallel call), RunUp-v1 near equilibrium,
+layer, in a fresh process (the layer is fixed at the first parallel call), RunUp-v2 near equilibrium,
 N = 16 envs, env steps/s with 1 and 2 threads, alternating.  Run on an idle machine::
 
     OMP_NUM_THREADS=1 python -m gfb_experiments.bench_threading_layer
@@ -30,7 +30,7 @@ def measure(num_envs: int, batches: int, reps: int) -> dict[int, list[float]]:
 
     import gfb_env  # noqa: F401  (registers the ids)
 
-    env = gym.make_vec("gfb_env/RunUp-v1", num_envs=num_envs)
+    env = gym.make_vec("gfb_env/RunUp-v2", num_envs=num_envs)
     u = env.unwrapped
     env.reset(seed=0)
     a = np.zeros((num_envs, 2), dtype=np.float32)  # hold the start speed: near equilibrium

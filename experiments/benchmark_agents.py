@@ -11,6 +11,9 @@ Method (``docs/agents.md``, "The benchmark's method"):
   the test range, for the final table only), ``validation`` (model selection, rule tuning) or
   ``legacy_v0`` (seeds 10000..10049, the v0 table of 2026-11: ``--split legacy_v0 --episodes 50
   --tasks <v0 ids>`` replays it).
+* The tasks (``--tasks``): the current (v2) ids by default; the retired v1 ids are accepted only to
+  reproduce the v1 record (``results/benchmark_v1``), on envs built by ``gfb_env.envs.retired.make_retired``
+  (their info and reward leak the hidden plant: not a benchmark).
 * The agents come from the ladder (:mod:`gfb_agents.ladder`): every entry that applies to a task plays the
   same seeds; a learned entry plays them once per training seed.  The naive, ``hold`` and oracle entries
   of a task always run (they define the normalised score, :mod:`gfb_experiments.benchmark_stats`: the zero
@@ -57,7 +60,6 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 
 from gfb_agents import ladder as ladder_mod
@@ -66,7 +68,7 @@ from gfb_agents.learned.evaluate import POLICIES_DIR, EpisodeResult, run_episode
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.seeds import MIN_TEST_EPISODES, SPLITS, split_seeds
 from gfb_env import jsonio
-from gfb_env.envs import ENV_IDS, V2_ENV_IDS
+from gfb_env.envs import ENV_IDS, RETIRED_V1_IDS, make_env
 from gfb_env.scripting import OneLineParser, check_output_dir
 from gfb_env.sweeps import check_scheduler
 from gfb_experiments.benchmark_stats import (
@@ -80,9 +82,10 @@ from gfb_experiments.benchmark_stats import (
     rescale_estimates,
 )
 
-TASKS = ENV_IDS  # the task list has one owner (the default run)
-#: every task the benchmark can play: the v1 ids and the v2 ids of issue 19 (``--tasks``)
-KNOWN_TASKS = (*ENV_IDS, *V2_ENV_IDS)
+TASKS = ENV_IDS  # the task list has one owner (the default run: the current, v2 ids)
+#: every task the benchmark can play (``--tasks``): the current (v2) ids, and the retired v1 ids to reproduce
+#: the record (``results/benchmark_v1``; built by ``gfb_env.envs.retired.make_retired``: not a benchmark)
+KNOWN_TASKS = (*ENV_IDS, *RETIRED_V1_IDS)
 COLUMNS = [
     "task",
     "agent",
@@ -195,7 +198,7 @@ def play_chunk(chunk: Chunk) -> dict:
 
     t0 = time.perf_counter()
     # the judge (run_episode) reads a v2 id's true quantities from its privileged channel itself
-    env = gym.make(chunk.task, **chunk.env_kwargs)
+    env = make_env(chunk.task, **chunk.env_kwargs)
     try:
         pol = chunk.entry.build(env, chunk.run)
         eps = [
@@ -890,7 +893,7 @@ def write_outputs(
     tasks = list(dict.fromkeys(r["task"] for r in rows))
     bands = {}
     for t in tasks:  # each task's own plant (grid, bearing): v2 ids may differ from v1's
-        env = gym.make(t, **env_kwargs.get(t, {}))
+        env = make_env(t, **env_kwargs.get(t, {}))
         try:
             bands[t] = plant_band(env)
         finally:
@@ -973,7 +976,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--env-kwargs",
         default=None,
-        help='JSON {task id: {gymnasium.make kwargs}}, e.g. {"gfb_env/RunUp-v1": {}}',
+        help='JSON {task id: {gymnasium.make kwargs}}, e.g. {"gfb_env/RunUp-v2": {}}',
     )
     ap.add_argument(
         "--merge",
@@ -1015,7 +1018,7 @@ def main(argv: list[str] | None = None) -> int:
         if t not in KNOWN_TASKS:
             ap.error(f"--env-kwargs: unknown task {t!r}; known: {', '.join(KNOWN_TASKS)}")
         try:  # the env each chunk builds: bad keywords fail now, not in the first worker
-            gym.make(t, **kw).close()
+            make_env(t, **kw).close()
         except (TypeError, ValueError) as exc:
             ap.error(f"--env-kwargs of {t}: {' '.join(str(exc).split())}")
     if a.no_learned and a.policies:

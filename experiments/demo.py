@@ -8,7 +8,7 @@ Stages (each writes into ``--out``):
    ``summary.json`` (the same as ``gfb simulate``).
 4. Linear stability: the critical bearing number Lambda_c of the rigid foil and of the viscoelastic
    foil (K_W = 1) at two dampings (``critical.json``), as ``gfb critical`` computes it.
-5. The control task: one seeded ``gfb_env/RunUp-v1`` episode (the instrumented machine: actuator lag,
+5. The control task: one seeded ``gfb_env/RunUp-v2`` episode (the instrumented machine: actuator lag,
    noisy probes, shocks, unbalance, a hidden damping gain, a speed command) flown by the ``margin_search``
    rule, with its path and a rendered frame (``runup_episode.json``, ``runup_frame.png``).
 """
@@ -103,7 +103,7 @@ def runup_stage(out: Path, seed: int = 0) -> dict:
     from gfb_agents.ladder import build
     from gfb_agents.learned.evaluate import run_episode
 
-    env = gym.make("gfb_env/RunUp-v1", render_mode="rgb_array")
+    env = gym.make("gfb_env/RunUp-v2", render_mode="rgb_array")
     # the benchmark's best rule on this task (README): it estimates the hidden damping gain on the way
     agent = build("margin_search", env)
     res = run_episode(env, agent, seed=seed, record_path=True)
@@ -129,7 +129,7 @@ def runup_stage(out: Path, seed: int = 0) -> dict:
     }
     (out / "runup_episode.json").write_text(jsonio.dumps(d, indent=2))
     print(
-        f"== RunUp-v1 with {agent.name}: {res.termination_reason} after {res.steps} steps, return "
+        f"== RunUp-v2 with {agent.name}: {res.termination_reason} after {res.steps} steps, return "
         f"{res.episode_return:.1f}, final speed {res.final_speed_rpm:.0f} rpm"
     )
     return {k: v for k, v in d.items() if not k.startswith("path")}

@@ -15,7 +15,7 @@ __all__ = ["main"]
 def main(argv: list[str] | None = None) -> int:
     ap = OneLineParser(prog="python -m gfb_experiments.export_policy", description=__doc__.splitlines()[0])
     ap.add_argument("run_dir")
-    ap.add_argument("name", help="directory name under agents/policies, e.g. RunUpRandomized-v1_sac")
+    ap.add_argument("name", help="directory name under agents/policies, e.g. RunUpRandomized-v2_sac")
     ap.add_argument("--which", choices=("final", "best"), default="best")
     a = ap.parse_args(argv)
     try:

@@ -1,7 +1,8 @@
 """Identifiability report (issue 19 s.3): how well the hidden quantities of a task can be inferred from the
 first ``k`` steps of its interface, per channel, against the rules' own posteriors.
 
-Per task id (``--tasks``; any live id of :data:`gfb_env.envs.ENV_IDS` or :data:`~gfb_env.envs.V2_ENV_IDS`):
+Per task id (``--tasks``; the current ids :data:`gfb_env.envs.ENV_IDS` (v2, the default), or a retired v1 id
+of :data:`~gfb_env.envs.RETIRED_V1_IDS` to reproduce the record, on the env ``make_retired`` builds):
 
 * **Targets** (from the privileged channel, for scoring only): ``ln_g`` (the hidden damping
   effectiveness, ``env.unwrapped.hidden_parameters()["damping_gain"]``), ``ln_lambda_best`` (the actual
@@ -50,18 +51,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_agents.policy import Policy
 from gfb_agents.seeds import TRAIN, VALIDATION
-from gfb_env.envs import ENV_IDS, V2_ENV_IDS
+from gfb_env.envs import ENV_IDS, RETIRED_V1_IDS, make_env
 from gfb_env.envs.privileged import flatten_numbers
 from gfb_env.scripting import OneLineParser, check_output_dir, int_range, write_json
 
-#: the ids the report runs on: the v1 ids and the v2 ids of issue 19
-KNOWN_TASKS = (*ENV_IDS, *V2_ENV_IDS)
+#: the ids the report runs on: the current (v2) ids, and the retired v1 ids for the record (what leaked)
+KNOWN_TASKS = (*ENV_IDS, *RETIRED_V1_IDS)
 
 __all__ = [
     "CHANNELS",
@@ -366,7 +366,7 @@ def simulate(
     estimates after each observation (``rule_estimates[j]``: having seen observations 0..j)."""
     from gfb_agents.ladder import build
 
-    env = gym.make(env_id)
+    env = make_env(env_id)
     u = env.unwrapped
     prior = prior_references(env)
     pol = ProbingPolicy(env, probing_schedule(env_id, env)) if policy == "probe" else build(rule, env)
@@ -455,7 +455,7 @@ def analyse_task(
     n_steps = max(ks)
     train = TRAIN.first(n_train, TRAIN_OFFSET)
     evals = VALIDATION.first(n_eval, EVAL_OFFSET)
-    env = gym.make(env_id)
+    env = make_env(env_id)
     prior = prior_references(env)
     schedule = probing_schedule(env_id, env)
     env.close()
@@ -757,9 +757,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--tasks",
         type=_task_list,
-        # once v1 is retired (issue 19) its ids leave ENV_IDS and the v2 ids are the default
-        default=[t for t in ENV_IDS if t.endswith("-v1")] or [t for t in ENV_IDS if t.endswith("-v2")],
-        help="comma-separated task ids (default: the v1 ids; the v2 ids once v1 is retired)",
+        default=list(ENV_IDS),
+        help="comma-separated task ids (default: the current, v2 ids; a retired v1 id replays the record)",
     )
     p.add_argument("--ks", type=_k_list, default=list(DEFAULT_KS), help="steps k (default 0,1,5,20)")
     p.add_argument("--train", type=int_range("--train", 5, 10_000), default=150, help="training episodes")

@@ -1,6 +1,6 @@
 """The vibration monitor (:mod:`gfb_env.machine.monitor`) on the real plant (issue 19 sect. 2).
 
-1. **1x against the linear unbalance response.**  On ``gfb_env/RunUp-v1``'s machine (development seeds:
+1. **1x against the linear unbalance response.**  On ``gfb_env/RunUp-v2``'s machine (development seeds:
    the episode's bearing, drawn unbalance and actual damping, read from the env's internals), the journal
    starts at the equilibrium at a speed Lambda (fractions of the episode's Lambda_c), runs with the
    unbalance until the free motion has decayed (8 / |max Re lambda|, at most 4000 tau), then one 60-tau
@@ -10,7 +10,7 @@
    :func:`gfb_env.analysis.response.unbalance_response`, projected on the probe
    (``C (u . z) e^{i phase}``).  A step with the motor's largest speed ramp (30 000 rpm/s) is compared
    with the linear response at its mean speed.
-2. **A developed whirl.**  ``gfb_env/WhirlRecovery-v1``'s start (the stored limit cycle advanced by a
+2. **A developed whirl.**  ``gfb_env/WhirlRecovery-v2``'s start (the stored limit cycle advanced by a
    random phase, the drawn gain and unbalance): one control step at the whirl's speed and damping; the
    monitor's sub-synchronous level, its dominant ratio against the limit cycle's (2 pi / (period
    Lambda_w)), and the 1x against it.
@@ -77,8 +77,8 @@ def _probe_phasors(probes: ProximityProbes, c_um: float, z_xi: complex, z_eta: c
 
 
 def one_x_check(seed: int, fractions: Sequence[float], monitor: VibrationMonitor) -> list[dict[str, Any]]:
-    """Part 1 for one RunUp-v1 episode: per speed (a fraction of Lambda_c at the episode's actual damping)."""
-    env = gym.make("gfb_env/RunUp-v1")
+    """Part 1 for one RunUp-v2 episode: per speed (a fraction of Lambda_c at the episode's actual damping)."""
+    env = gym.make("gfb_env/RunUp-v2")
     env.reset(seed=seed)
     u = env.unwrapped
     ep, integ0 = u.episode, u._integ  # noqa: SLF001 - the check reads the plant the env runs
@@ -152,8 +152,8 @@ def one_x_check(seed: int, fractions: Sequence[float], monitor: VibrationMonitor
 
 
 def whirl_check(seed: int, monitor: VibrationMonitor) -> dict[str, Any]:
-    """Part 2 for one WhirlRecovery-v1 start: one control step of the developed whirl."""
-    env = gym.make("gfb_env/WhirlRecovery-v1")
+    """Part 2 for one WhirlRecovery-v2 start: one control step of the developed whirl."""
+    env = gym.make("gfb_env/WhirlRecovery-v2")
     env.reset(seed=seed)
     u = env.unwrapped
     ep, integ = u.episode, u._integ  # noqa: SLF001

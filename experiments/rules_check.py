@@ -1,10 +1,13 @@
-"""Measure the v1 rules on training seeds, and the identification's accuracy (the numbers in docs/agents.md).
+"""Measure the rules on training seeds, and the identification's accuracy (the numbers in docs/agents.md).
 
-    python -m gfb_experiments.rules_check --env gfb_env/RunUp-v1 --rule margin_search --seeds 0 50 \
-        [--safe-growth-rate X] [--rows] [--out results/rules_v1/RunUp-v1_margin_search.json]
+    python -m gfb_experiments.rules_check --env gfb_env/RunUp-v2 --rule margin_search --seeds 0 50 \
+        [--safe-growth-rate X] [--rows] [--out FILE.json]
     python -m gfb_experiments.rules_check --identify --seeds 0 50 [--out results/rules_v1/identification.json]
 
-Training / validation seeds only (< 10000: the benchmark's test seeds are refused).  The rules are built by
+Training / validation seeds only (< 10000: the benchmark's test seeds are refused).  A retired v1 id
+(``--env gfb_env/RunUp-v1``) reproduces the record in ``results/rules_v1`` on the env
+``gfb_env.envs.retired.make_retired`` builds (not a benchmark); ``--identify`` measures on the retired
+RunUpRandomized-v1's draws, the record behind docs/agents.md's numbers.  The rules are built by
 the ladder (:func:`gfb_agents.ladder.build`); the evaluation reads the env's hidden quantities after each
 episode, for the measurement only (the final speed against the actual best stable speed, the drawn gain).
 """
@@ -30,11 +33,9 @@ def evaluate_rule(env_id: str, name: str, seeds: range, **rule_kwargs) -> list[d
     """Play ``name`` on ``env_id`` for ``seeds``; one row per episode: return, success, certificate,
     touchdown, the final speed relative to ``min(command, lambda_best of the actual plant)`` (read from
     the env after the episode, for the evaluation only) and the hidden gain."""
-    import gymnasium as gym
+    from gfb_env.envs import make_env  # a current id, or a retired v1 id for the record
 
-    import gfb_env.envs  # noqa: F401  (registers the ids)
-
-    env = gym.make(env_id)
+    env = make_env(env_id)
     u = env.unwrapped
     if rule_kwargs:  # a variant of a rule's settings (a tuning run): built by its class
         classes = {"margin_search": MarginSearchAgent, "recovery": RecoveryAgent}
@@ -86,11 +87,9 @@ def identification_accuracy(seeds: range, ramp_steps: int = 28) -> dict:
     """Relative errors of :func:`identify_bearing` (6 observations at the start speed) and of
     :func:`refine_bearing` (plus ``ramp_steps`` observations of a full-rate run-up in 4-step averages)
     on RunUpRandomized-v1 draws, and of the published table's ``lambda_best`` at each estimate."""
-    import gymnasium as gym
+    from gfb_env.envs import make_retired
 
-    import gfb_env.envs  # noqa: F401
-
-    env = gym.make("gfb_env/RunUpRandomized-v1")
+    env = make_retired("gfb_env/RunUpRandomized-v1")  # the record of docs/agents.md
     u = env.unwrapped
     lay = u.observation_layout
     idf = BearingIdentifier(u)
@@ -129,7 +128,7 @@ def identification_accuracy(seeds: range, ramp_steps: int = 28) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m gfb_experiments.rules_check --env gfb_env/RunUp-v1 --rule margin_search --seeds 0 50``:
+    """``python -m gfb_experiments.rules_check --env gfb_env/RunUp-v2 --rule margin_search --seeds 0 50``:
     measure a rule on training seeds (< 10000; the benchmark's test seeds are refused)."""
     import argparse
     import json

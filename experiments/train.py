@@ -1,7 +1,7 @@
 """Train Stable-Baselines3 agents on a gfb_env task: the command line of :mod:`gfb_agents.learned.train`.
 
     python -m gfb_experiments.train --algo {ppo,sac,recurrentppo,asymmetric_ppo}
-        --env gfb_env/RunUpRandomized-v1
+        --env gfb_env/RunUpRandomized-v2
         [--seeds 0-4 | --seed R] [--timesteps N] [--n-jobs K | --scheduler ADDRESS] [--out DIR]
         [--n-envs K] [--frame-stack K] [--hyperparams FILE] [--env-kwargs JSON] [--eval-freq N]
         [--eval-episodes N] [--checkpoint-freq N] [--keep-checkpoints N] [--no-progress-bar]
@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--env",
         default=None,
-        help="registered env id (default gfb_env/RunUpRandomized-v1; teacher_student: the teacher's)",
+        help="registered env id (default gfb_env/RunUpRandomized-v2; teacher_student: the teacher's)",
     )
     ap.add_argument(
         "--teacher",
@@ -155,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         config = TrainConfig(
             algo=a.algo,
-            env_id=a.env or "gfb_env/RunUpRandomized-v1",
+            env_id=a.env or "gfb_env/RunUpRandomized-v2",
             timesteps=a.timesteps,
             seed=run_seeds[0],
             n_envs=a.n_envs,

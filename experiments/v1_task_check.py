@@ -1,5 +1,8 @@
 """Check that the v1 (commanded-speed) tasks are well posed: the oracle against the naive ramp.
 
+The v1 ids are retired (issue 19: their info and reward leak the hidden plant); this check replays the
+record (``results/v1_task_check``) on the envs :func:`gfb_env.envs.retired.make_retired` builds.
+
 For each v1 task, on training seeds (default 0-49): the return, success, certification and episode cost
 of :class:`gfb_agents.oracles.commanded.CommandedOracle` (``oracle_v1``, knows every hidden parameter) and of
 :class:`gfb_agents.ladder.NaiveRampAgent` (``naive``, the paper's constant-damping ramp to the command,
@@ -25,12 +28,12 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-import gfb_env.envs  # noqa: F401
 from gfb_agents import ladder
 from gfb_agents.oracles.commanded import CommandedOracle
+from gfb_env.envs import make_retired
 from gfb_env.scripting import OneLineParser
 
-V1_IDS = ("gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1")
+V1_IDS = ("gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1")  # retired
 
 
 def play(env: gym.Env, agent, seed: int) -> dict:
@@ -69,7 +72,7 @@ def command_statistics(n: int) -> dict:
     """RunUpRandomized-v1 on ``n`` draws (seeds 0..n-1): the exact best stable speed of each drawn plant
     (achievable actual damping), the share of commands above it, and the error of the v0 table's
     trilinear ``lambda_best`` (unconstrained damping) against the exact unconstrained value."""
-    env = gym.make("gfb_env/RunUpRandomized-v1")
+    env = make_retired("gfb_env/RunUpRandomized-v1")
     u = env.unwrapped
     above, best_rpm, table_err, t_best, cmd_rpm = [], [], [], [], []
     for seed in range(n):
@@ -102,7 +105,7 @@ def step_cost(episodes: int = 6, steps: int = 150) -> dict:
     variants it was compared with are retired, issue 18), episode by episode; the horizon's last step
     (with the certificate) is timed apart.  Minimum and median over ``episodes``."""
     variants = {
-        "RunUp-v1": gym.make("gfb_env/RunUp-v1", episode_steps=steps, max_episode_steps=steps),
+        "RunUp-v1": make_retired("gfb_env/RunUp-v1", episode_steps=steps, max_episode_steps=steps),
     }
     per_step: dict = {k: [] for k in variants}
     last: list[float] = []
@@ -143,7 +146,7 @@ def gain_window(n_gains: int = 15, seeds: tuple[int, ...] = (0, 1, 2, 3), steps:
     out = {}
     for g in np.geomspace(*V1_DAMPING_GAIN_RANGE, n_gains):
         act = dataclasses.replace(V1_TASK["damping_actuator"], gain=float(g), gain_range=None)
-        env = gym.make("gfb_env/WhirlRecovery-v1", damping_actuator=act)
+        env = make_retired("gfb_env/WhirlRecovery-v1", damping_actuator=act)
         u = env.unwrapped
         a = np.array([-1.0, u.action_from_damping(u.constants["d_opt"])], dtype=np.float32)
         steps_to_touchdown = []
@@ -242,7 +245,7 @@ def main(argv: list[str] | None = None) -> None:
         p.error("--seeds: only training seeds 0-99")
     out: dict = {"seeds": a.seeds, "shocks": not a.no_shocks, "tasks": {}}
     for env_id in a.tasks.split(","):
-        env = gym.make(env_id, **({"shock_arrivals": {"rate_per_s": 0.0}} if a.no_shocks else {}))
+        env = make_retired(env_id, **({"shock_arrivals": {"rate_per_s": 0.0}} if a.no_shocks else {}))
         res: dict = {}
         if a.margins:
             for m in (float(x) for x in a.margins.split(",")):

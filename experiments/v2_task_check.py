@@ -18,12 +18,11 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_agents.oracles.commanded import CommandedOracle
-from gfb_env.envs import ENV_IDS
+from gfb_env.envs import RETIRED_V1_IDS, make_env
 from gfb_env.scripting import OneLineParser, check_output_dir, write_json
 from gfb_experiments.v1_task_check import parse_seeds
 
@@ -31,7 +30,7 @@ __all__ = ["run_pair", "main"]
 
 
 def _episode(env_id: str, seed: int, **kw: Any) -> dict[str, Any]:
-    env = gym.make(env_id, **kw)
+    env = make_env(env_id, **kw)  # a v1 id: retired, the env make_retired builds (the comparison's baseline)
     oracle = CommandedOracle(env)
     obs, info = env.reset(seed=seed)
     oracle.reset()
@@ -111,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--seeds: a list like 0-49 or 1,2,5, got {a.seeds!r}")
     if not seeds or min(seeds) < 0 or max(seeds) > 99:
         p.error("--seeds: only training seeds 0-99")
-    names = {i.split("/")[1].split("-")[0]: i for i in ENV_IDS}
+    names = {i.split("/")[1].split("-")[0]: i for i in RETIRED_V1_IDS}  # each task's v1 id, paired with v2
     wanted = list(names) if a.tasks == "all" else [t.strip() for t in a.tasks.split(",")]
     bad = [t for t in wanted if t not in names]
     if bad:

@@ -28,15 +28,13 @@ def _moments(post) -> tuple[float, float]:
     return mu, float(math.sqrt(max(float(w @ (lg - mu) ** 2), 0.0)))
 
 
-def posterior_errors(n_reset: int, n_step: int, env_id: str = "gfb_env/WhirlRecovery-v1") -> dict:
+def posterior_errors(n_reset: int, n_step: int, env_id: str = "gfb_env/WhirlRecovery-v2") -> dict:
     """Error of the posterior mean of ln g (and its sd) after the reset on the first ``n_reset``
     validation seeds, and after the first step on the first ``n_step`` of them; the cost of each."""
-    import gymnasium as gym
-
-    import gfb_env.envs  # noqa: F401  (registers the ids)
     from gfb_agents import ladder
+    from gfb_env.envs import make_env  # a current id, or the retired WhirlRecovery-v1 for the record
 
-    env = gym.make(env_id)
+    env = make_env(env_id)
     u = env.unwrapped
     t0 = time.perf_counter()
     pol = ladder.build("recovery_reset", env)

@@ -16,8 +16,8 @@ undesirable self-excited vibrations in gas foil bearing rotor systems".
 # code is built from changed since (numba's cache checks only each function's own file; gfb_env._numba_cache).
 import gfb_env._numba_cache  # noqa: F401  (its import does it)
 
-# Registers gfb_env/RunUp-v1, gfb_env/RunUpRandomized-v1, gfb_env/WhirlRecovery-v1 with gymnasium (and
-# the retired -v0 ids, which refuse with the id to use).
+# Registers gfb_env/RunUp-v2, gfb_env/RunUpRandomized-v2, gfb_env/WhirlRecovery-v2 with gymnasium (and
+# the retired -v0 and -v1 ids, which refuse with the id to use).
 import gfb_env.envs  # noqa: F401
 from gfb_env.equilibrium import EquilibriumError, find_equilibrium
 from gfb_env.integrator import (

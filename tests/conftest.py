@@ -1,9 +1,9 @@
 import time
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
+from gfb_env.envs.retired import make_env
 from gfb_env.model import GFBModel
 
 
@@ -61,8 +61,9 @@ def same_value(x, y) -> bool:
 
 def record_short_episode(env_id: str, seed: int, policy=None, episode_steps: int = 12, **kw):
     """(infos, ``hidden_parameters()`` after each, observations, rewards) of a whole episode of
-    ``episode_steps`` under ``policy(env.unwrapped)`` (default: the task's scripted expert)."""
-    env = gym.make(env_id, **{"episode_steps": episode_steps, **kw})
+    ``episode_steps`` under ``policy(env.unwrapped)`` (default: the task's scripted expert; a retired v1 id
+    through ``make_retired``)."""
+    env = make_env(env_id, **{"episode_steps": episode_steps, **kw})
     u = env.unwrapped
     obs, info = env.reset(seed=seed)
     infos, hidden, observations, rewards = [info], [u.hidden_parameters()], [obs], []

@@ -447,10 +447,11 @@ def evaluate(
     record_path_seeds: tuple[int, ...] = (),
     progress: Any = None,
 ) -> list[EpisodeResult]:
-    """Play ``policy`` on ``env_id`` once per seed (a fresh env, deterministic policy)."""
-    import gfb_env.envs  # noqa: F401
+    """Play ``policy`` on ``env_id`` once per seed (a fresh env, deterministic policy; a retired v1 id, for
+    the committed v1 policies' record, on the env ``gfb_env.envs.retired.make_retired`` builds)."""
+    from gfb_env.envs import make_env
 
-    env = gym.make(env_id, **(env_kwargs or {}))
+    env = make_env(env_id, **(env_kwargs or {}))
     out = []
     try:
         for s in seeds:

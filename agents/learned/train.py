@@ -187,7 +187,7 @@ VEC_ENVS = ("dummy", "subproc", "native")
 
 
 def importable_env_id(env_id: str) -> str:
-    """``env_id`` in gymnasium's ``"module:id"`` form for the gfb_env tasks (``"gfb_env:gfb_env/RunUp-v1"``).
+    """``env_id`` in gymnasium's ``"module:id"`` form for the gfb_env tasks (``"gfb_env:gfb_env/RunUp-v2"``).
 
     A worker process started by ``spawn``/``forkserver`` (SB3's ``SubprocVecEnv``) is a fresh interpreter
     that never imported gfb_env, so the plain id is unknown there (``NamespaceNotFound``) unless its main
@@ -614,7 +614,7 @@ class TrainConfig:
     """
 
     algo: str
-    env_id: str = "gfb_env/RunUpRandomized-v1"
+    env_id: str = "gfb_env/RunUpRandomized-v2"
     timesteps: int | None = None
     seed: int = 0
     n_envs: int | None = None
@@ -638,8 +638,11 @@ class TrainConfig:
         if algo not in ALGOS:
             raise ValueError(f"algo must be one of {ALGOS}, got {self.algo!r}")
         object.__setattr__(self, "algo", algo)
-        import gfb_env.envs  # noqa: F401  (registers the ids)
+        from gfb_env.envs import RETIRED_IDS, RetiredTaskError
+        from gfb_env.envs.retired import retired_message
 
+        if self.env_id in RETIRED_IDS:  # before any work: why, and the id to train on instead
+            raise RetiredTaskError(f"env_id: {retired_message(self.env_id)}")
         if self.env_id not in gym.registry:
             raise ValueError(
                 f"unknown env id {self.env_id!r}; registered gfb_env ids: "
@@ -696,12 +699,12 @@ class TrainConfig:
 
     @property
     def task(self) -> str:
-        """``RunUp`` of ``gfb_env/RunUp-v1``."""
+        """``RunUp`` of ``gfb_env/RunUp-v2``."""
         return self.env_id.split("/")[-1].split("-v")[0]
 
     @property
     def experiment_name(self) -> str:
-        """``RunUp-v1_ppo`` (``_fs4`` with a frame stack of 4): the default folder of the runs."""
+        """``RunUp-v2_ppo`` (``_fs4`` with a frame stack of 4): the default folder of the runs."""
         fs = f"_fs{self.frame_stack}" if self.frame_stack > 1 else ""
         return f"{self.env_id.split('/')[-1]}_{self.algo}{fs}"
 

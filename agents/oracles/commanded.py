@@ -37,7 +37,8 @@ from gfb_agents.policy import PrivilegedPolicy
 
 __all__ = ["CommandedOracle", "ORACLE_MARGIN", "ORACLE_COLLAPSE_AMPLITUDE"]
 
-#: the oracle's relative margin below lambda_best (tuned on training seeds 0-99, ``docs/envs.md``)
+#: the oracle's relative margin below lambda_best (tuned on training seeds 0-99 of the v1 ids, now retired and
+#: kept for the record; ``docs/envs.md``)
 ORACLE_MARGIN = {
     "gfb_env/RunUp-v1": 0.01,
     "gfb_env/RunUpRandomized-v1": 0.01,

@@ -2,20 +2,22 @@
 
 Importing this package registers (idempotently):
 
-* ``gfb_env/RunUp-v1`` (:class:`~gfb_env.envs.run_up.RunUpEnv`, ``max_episode_steps=250``),
-  ``gfb_env/RunUpRandomized-v1`` (:class:`~gfb_env.envs.run_up_randomized.RunUpRandomizedEnv`, 250),
-  ``gfb_env/WhirlRecovery-v1`` (:class:`~gfb_env.envs.whirl_recovery.WhirlRecoveryEnv`, 200):
-  the commanded-speed tasks (:data:`V1_TASK`, :mod:`gfb_env.envs.commanded`: an observed speed
-  command, a fixed horizon, a stability certificate at the end, costs) on the instrumented machine
-  (:data:`MACHINE_V1`: actuator lag and rate limit, noisy biased probes and taps, random base shocks
-  instead of the velocity kick, a residual unbalance; ``docs/machine.md``) with a hidden damping
-  effectiveness (:data:`V1_DAMPING_GAIN_RANGE`).
-* ``gfb_env/RunUp-v2``, ``gfb_env/RunUpRandomized-v2``, ``gfb_env/WhirlRecovery-v2`` (:data:`V2_ENV_IDS`):
-  the same tasks, classes and horizons with the v2 information interface (:data:`INTERFACE_V2`,
-  :mod:`gfb_env.envs.interface_v2`: the vibration monitor's observation, the reward and costs from the
-  measurements, an info with no ground truth, the certificate that forgives a shock's ring-down).
-* the retired ``gfb_env/RunUp-v0``, ``gfb_env/RunUpRandomized-v0``, ``gfb_env/WhirlRecovery-v0``: making
-  one raises :class:`~gfb_env.envs.retired.RetiredTaskError` (why, and the -v1 id to use).
+* ``gfb_env/RunUp-v2`` (:class:`~gfb_env.envs.run_up.RunUpEnv`, ``max_episode_steps=250``),
+  ``gfb_env/RunUpRandomized-v2`` (:class:`~gfb_env.envs.run_up_randomized.RunUpRandomizedEnv`, 250),
+  ``gfb_env/WhirlRecovery-v2`` (:class:`~gfb_env.envs.whirl_recovery.WhirlRecoveryEnv`, 200)
+  (:data:`ENV_IDS`, the current tasks; :data:`V2_ENV_IDS` is the same tuple): the commanded-speed tasks
+  (:data:`V1_TASK`, :mod:`gfb_env.envs.commanded`: an observed speed command, a fixed horizon, a stability
+  certificate at the end, costs) on the instrumented machine (:data:`MACHINE_V1`: actuator lag and rate limit,
+  noisy biased probes and taps, random base shocks instead of the velocity kick, a residual unbalance;
+  ``docs/machine.md``) with a hidden damping effectiveness (:data:`V1_DAMPING_GAIN_RANGE`), behind the v2
+  information interface (:data:`INTERFACE_V2`, :mod:`gfb_env.envs.interface_v2`: the vibration monitor's
+  observation, the reward and costs from the measurements, an info with no ground truth, the certificate that
+  forgives a shock's ring-down).
+* the retired ``gfb_env/RunUp-v1``, ``gfb_env/RunUpRandomized-v1``, ``gfb_env/WhirlRecovery-v1``
+  (:data:`RETIRED_V1_IDS`: the same tasks with the v1 interface, whose info and reward leak the hidden plant;
+  issue 19) and ``gfb_env/RunUp-v0``, ``gfb_env/RunUpRandomized-v0``, ``gfb_env/WhirlRecovery-v0``: making one
+  raises :class:`~gfb_env.envs.retired.RetiredTaskError` (why, and the -v2 id to use).  A v1 env is built for
+  the record only (not a benchmark) with :func:`~gfb_env.envs.retired.make_retired`.
 
 Every id has a native vector env (:class:`~gfb_env.envs.vector.GFBVectorEnv`, registered as its
 ``vector_entry_point``): ``gymnasium.make_vec(id, num_envs=N)`` returns it, bit for bit the same as
@@ -30,7 +32,15 @@ from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.envs.base import DEFAULT_GRID, GFBEnv, PlantResult, StepPlan, advance_plans
 from gfb_env.envs.commanded import CommandedObjective
 from gfb_env.envs.interface_v2 import MonitorInterface
-from gfb_env.envs.retired import RETIRED_IDS, RetiredEntryPoint, RetiredTaskError
+from gfb_env.envs.retired import (
+    RETIRED_IDS,
+    RETIRED_V1_IDS,
+    RetiredEntryPoint,
+    RetiredTaskError,
+    make_env,
+    make_retired,
+    make_retired_vec,
+)
 from gfb_env.envs.run_up import RunUpEnv
 from gfb_env.envs.run_up_randomized import RunUpRandomizedEnv
 from gfb_env.envs.vector import GFBVectorEnv
@@ -60,7 +70,11 @@ __all__ = [
     "INTERFACE_V2",
     "MonitorInterface",
     "RETIRED_IDS",
+    "RETIRED_V1_IDS",
     "RetiredTaskError",
+    "make_retired",
+    "make_retired_vec",
+    "make_env",
     "MACHINE_V1",
     "V1_TASK",
     "V1_DAMPING_GAIN_RANGE",
@@ -117,13 +131,15 @@ _WHIRL_RECOVERY_V1 = {
     "damping_actuator": FoilDampingActuator(gain_range=V1_WHIRL_RECOVERY_GAIN_RANGE),
 }
 
-#: registered ids -> (entry point, max_episode_steps, default keyword arguments)
-_SPECS = {
+#: the retired v1 ids -> (entry point, max_episode_steps, default keyword arguments): not registered (the
+#: ids refuse), built for the record only by :func:`~gfb_env.envs.retired.make_retired`
+_V1_SPECS = {
     "gfb_env/RunUp-v1": ("gfb_env.envs.run_up:RunUpEnv", 250, V1_TASK),
     "gfb_env/RunUpRandomized-v1": ("gfb_env.envs.run_up_randomized:RunUpRandomizedEnv", 250, V1_TASK),
     "gfb_env/WhirlRecovery-v1": ("gfb_env.envs.whirl_recovery:WhirlRecoveryEnv", 200, _WHIRL_RECOVERY_V1),
 }
-#: the v2 ids: v1's tasks with the v2 interface
+#: the registered task ids -> (entry point, max_episode_steps, default keyword arguments): v1's tasks with
+#: the v2 interface
 _V2_SPECS = {
     "gfb_env/RunUp-v2": ("gfb_env.envs.run_up:RunUpEnv", 250, {**V1_TASK, "interface": INTERFACE_V2}),
     "gfb_env/RunUpRandomized-v2": (
@@ -143,16 +159,16 @@ _VECTOR_ENTRY_POINTS = {
     "gfb_env.envs.run_up_randomized:RunUpRandomizedEnv": "gfb_env.envs.vector:RunUpRandomizedVectorEnv",
     "gfb_env.envs.whirl_recovery:WhirlRecoveryEnv": "gfb_env.envs.vector:WhirlRecoveryVectorEnv",
 }
-#: the v1 tasks (the v0 ids are retired: :mod:`gfb_env.envs.retired`)
-ENV_IDS = tuple(_SPECS)
 #: the v2 tasks (issue 19: the information contract, :mod:`gfb_env.envs.interface_v2`)
 V2_ENV_IDS = tuple(_V2_SPECS)
+#: the current tasks, the ids to use: the v2 ids (the v0 and v1 ids are retired: :mod:`gfb_env.envs.retired`)
+ENV_IDS = V2_ENV_IDS
 
 
 def register_envs() -> None:
     """Register the tasks with Gymnasium, and the retired ids as refusals (no-op for ids already
     registered)."""
-    for env_id, (entry_point, steps, kwargs) in {**_SPECS, **_V2_SPECS}.items():
+    for env_id, (entry_point, steps, kwargs) in _V2_SPECS.items():
         if env_id not in registry:
             register(
                 id=env_id,

@@ -1,5 +1,5 @@
 """The commanded-speed objective of the tasks, a component each task holds (``env.objective``, a
-:class:`CommandedObjective`), shared by RunUp-v1, RunUpRandomized-v1 and WhirlRecovery-v1
+:class:`CommandedObjective`), shared by RunUp, RunUpRandomized and WhirlRecovery (v2, and the retired v1)
 (``docs/envs.md``, issues 11 and 18).
 
 * **Command**: per episode an operating speed ``n_cmd`` is commanded and observed (the observation ends

@@ -1,5 +1,6 @@
-"""The information contract of the registered tasks (issue 19, ``docs/envs.md`` "Information contract"):
-the documented classification of every ``info`` key, per registered id, and the checks of it.
+"""The information contract of the tasks (issue 19, ``docs/envs.md`` "Information contract"): the documented
+classification of every ``info`` key, per task id (the current v2 ids and, for the record, the retired v1
+ids), and the checks of it.
 
 Every key a task's ``info`` may hold is in one class (:class:`InfoClass`):
 
@@ -15,8 +16,10 @@ Every key a task's ``info`` may hold is in one class (:class:`InfoClass`):
   next episode draws a new plant.  The v2 reward's terminal terms pay on it, so it must be given for
   the reward to be recomputed (:func:`~gfb_env.envs.monitor_reward.recompute_rewards`).
 
-The v1 ids leak: their ``info`` holds GROUND_TRUTH keys at every reset and step (kept bit for bit for
-the published v1 results; :func:`leaked_ground_truth` lists them).  The v2 ids hold none (tested).
+The v1 ids leak: their ``info`` holds GROUND_TRUTH keys at every reset and step, which is why they are
+retired (:mod:`gfb_env.envs.retired`; their envs, built for the record by ``make_retired``, keep it bit for
+bit for the published v1 results; :func:`leaked_ground_truth` lists the keys).  The v2 ids hold none
+(tested).
 A key that is in no class fails :func:`unclassified_keys` (a test walks whole episodes of every
 id), so a new key must be classified here before it ships.
 
@@ -187,7 +190,7 @@ _V2: dict[str, InfoEntry] = {
     "privileged": InfoEntry(InfoClass.PRIVILEGED, "the opt-in channel (privileged_info=True only)"),
 }
 
-#: registered id -> {info key -> :class:`InfoEntry`} (read-only)
+#: task id (the v2 ids; the retired v1 ids, for the record) -> {info key -> :class:`InfoEntry`} (read-only)
 INFO_CONTRACT: Mapping[str, Mapping[str, InfoEntry]] = MappingProxyType(
     {
         "gfb_env/RunUp-v1": MappingProxyType(_RUN_UP_V1),

@@ -1,5 +1,5 @@
-"""``gfb_env/RunUp-v1``: run a gas foil bearing rotor up to a commanded speed, as close to it as is stably
-possible, with a foil damping whose effectiveness is hidden."""
+"""``gfb_env/RunUp-v2`` (and the retired ``gfb_env/RunUp-v1``): run a gas foil bearing rotor up to a
+commanded speed, as close to it as is stably possible, with a foil damping whose effectiveness is hidden."""
 
 from __future__ import annotations
 
@@ -167,6 +167,11 @@ class RunUpEnv(GFBEnv):
       identifiable from the first observation; ``CHANGELOG.md``).
     * v1 (issues 10, 11): the instrumented machine, the hidden damping gain, the observed speed
       command, the fixed horizon, the stability certificate, the commanded-speed reward and the costs.
+    * v2 (issue 19): the v1 task behind the v2 information interface
+      (:class:`~gfb_env.envs.interface_v2.MonitorInterface`): the vibration monitor's observation, the
+      reward and costs from the measurements, an info with no ground truth.  v1 retired: its info and
+      reward hand the hidden plant to any policy (``gfb_env.envs.retired``; ``make_retired`` builds
+      it for the record only).
     """
 
     def __init__(

@@ -1,5 +1,5 @@
-"""``gfb_env/RunUpRandomized-v1``: RunUp-v1 with a bearing drawn per episode (clearance, foil stiffness,
-load) and the speed command in absolute rpm."""
+"""``gfb_env/RunUpRandomized-v2`` (and the retired ``-v1``): RunUp with a bearing drawn per episode
+(clearance, foil stiffness, load) and the speed command in absolute rpm."""
 
 from __future__ import annotations
 
@@ -123,6 +123,11 @@ class RunUpRandomizedEnv(RunUpEnv):
     * v0: the drawn bearing on an ideal machine with a table target; retired (issue 18, ``CHANGELOG.md``).
     * v1 (issues 10, 11): as RunUp-v1 on the drawn bearing; the command range moved from 34 000-44 000
       to 40 000-60 000 rpm (most commands above the best stable speed).
+    * v2 (issue 19): the v1 task behind the v2 information interface
+      (:class:`~gfb_env.envs.interface_v2.MonitorInterface`): the vibration monitor's observation, the
+      reward and costs from the measurements, an info with no ground truth.  v1 retired: its info and
+      reward hand the hidden plant to any policy (``gfb_env.envs.retired``; ``make_retired`` builds
+      it for the record only).
     """
 
     def __init__(

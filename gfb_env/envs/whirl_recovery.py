@@ -1,5 +1,5 @@
-"""``gfb_env/WhirlRecovery-v1``: bring a whirling GFB rotor back to a certified stable equilibrium,
-restoring as much of the commanded speed as is stably possible."""
+"""``gfb_env/WhirlRecovery-v2`` (and the retired ``-v1``): bring a whirling GFB rotor back to a certified
+stable equilibrium, restoring as much of the commanded speed as is stably possible."""
 
 from __future__ import annotations
 
@@ -79,6 +79,11 @@ class WhirlRecoveryEnv(GFBEnv):
       ``CHANGELOG.md``).
     * v1 (issues 10, 11): the instrumented machine, the hidden gain (narrowed from [0.316, 3.16] to
       [0.6, 1.8]), the observed command (Lambda_w), the horizon, the certificate, reward and costs.
+    * v2 (issue 19): the v1 task behind the v2 information interface
+      (:class:`~gfb_env.envs.interface_v2.MonitorInterface`): the vibration monitor's observation, the
+      reward and costs from the measurements, an info with no ground truth.  v1 retired: its info and
+      reward hand the hidden plant to any policy, and its reset observation tells g
+      (``gfb_env.envs.retired``; ``make_retired`` builds it for the record only).
     """
 
     def __init__(

@@ -16,7 +16,7 @@ Per probe (X, Y) and per control step it reports
 * the **sub-synchronous level**, um rms: the rms over the step of the part of the signal in the band
   ``subsynchronous_band_ratio`` (default 0.30-0.55 of the running speed: the whirls of this bearing run at
   0.37-0.42x at onset (linear), 0.43-0.46x on the limit cycles of docs/analysis.md and 0.34x on the
-  developed whirl WhirlRecovery-v1 starts from), and the **dominant sub-synchronous ratio** (the frequency /
+  developed whirl WhirlRecovery starts from), and the **dominant sub-synchronous ratio** (the frequency /
   running speed at which a single sinusoid explains the most of it);
 * the mean (the gap, "position") in um, its linear trend in um/s, and the rms of what the fit leaves.
 

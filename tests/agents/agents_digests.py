@@ -20,14 +20,13 @@ import json
 import sys
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 
 # the digest helpers live beside the integrator's tests (tests/integrator/integrator_digests.py)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "integrator"))
 from integrator_digests import PLATFORM_KEY, digest  # noqa: E402
 
-import gfb_env.envs  # noqa: F401  (registers the ids)
+from gfb_env.envs.retired import make_retired  # the v1 ids are retired: their envs for the record
 
 #: control steps per episode (the whole v1 episode: every mode of margin_search and recovery is reached)
 STEPS = 250
@@ -53,7 +52,7 @@ def _ladder_entry(task: str, name: str):
 
 
 def play(task: str, name: str, seed: int) -> dict[str, str]:
-    env = gym.make(task)
+    env = make_retired(task)
     try:
         policy = _ladder_entry(task, name).build(env, 0)
         policy.reset()

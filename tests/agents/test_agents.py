@@ -11,15 +11,16 @@ import numpy as np
 import pytest
 
 from gfb_agents import seeds
-from gfb_agents.ladder import V1_TASKS, ladder_for
+from gfb_agents.ladder import V1_TASKS, V2_TASKS, ladder_for
 from gfb_agents.learned.evaluate import LearnedPolicy, run_episode, summarise
 from gfb_agents.learned.train import TrainConfig, load_hyperparams, train
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.policy import ControlSpec
 from gfb_agents.rules.map_informed import MapInformedAgent
+from gfb_env.envs import make_env
 from gfb_experiments.train import main as train_main
 
-TASKS = V1_TASKS  # the task list has one owner
+TASKS = V2_TASKS  # the task list has one owner: the current tasks
 SHORT = 25  # control steps per test episode
 
 
@@ -70,7 +71,7 @@ def test_hold_reference_holds_the_start_speed_at_the_naive_damping(task):
 
 
 def test_scripted_interface_batch_and_reset():
-    env = gym.make("gfb_env/RunUp-v1")
+    env = make_env("gfb_env/RunUp-v1")  # map_informed_v1 is a v1 rule: the retired env, for the record
     (entry,) = ladder_for("gfb_env/RunUp-v1", ["map_informed_v1"])
     agent = entry.build(env)
     obs, _ = env.reset(seed=0)
@@ -87,7 +88,7 @@ def test_scripted_interface_batch_and_reset():
 
 
 def test_map_informed_uses_the_nominal_optimum():
-    env = gym.make("gfb_env/RunUp-v1")
+    env = make_env("gfb_env/RunUp-v1")
     nmap = NominalMap.from_env(env)
     u = env.unwrapped
     assert nmap.lambda_best == pytest.approx(u.constants["lambda_best"])
@@ -115,8 +116,8 @@ def _tiny_yaml(tmp_path, algo: str, env_id: str):
 
 
 def _train_quick(tmp_path, algo: str, out_name: str, **overrides):
-    """``train`` on RunUp-v1 with the tiny hyperparameters, no progress bar, no TensorBoard."""
-    env_id = "gfb_env/RunUp-v1"
+    """``train`` on RunUp-v2 with the tiny hyperparameters, no progress bar, no TensorBoard."""
+    env_id = "gfb_env/RunUp-v2"
     kwargs = dict(
         timesteps=256,
         seed=1,
@@ -138,7 +139,7 @@ def test_train_save_reload_predictions_unchanged(tmp_path, algo):
     from stable_baselines3 import PPO, SAC
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    env_id = "gfb_env/RunUp-v1"
+    env_id = "gfb_env/RunUp-v2"
     out = _train_quick(tmp_path, algo, "run", eval_freq=128, checkpoint_freq=128)
     for f in (
         "model.zip",
@@ -249,7 +250,7 @@ def test_interrupted_training_is_saved_and_resumable(tmp_path, monkeypatch):
         "_tqdm_progress_callback",
         lambda total, done: type("Stop", (BaseCallback,), {"_on_step": on_step})(),
     )
-    env_id = "gfb_env/RunUp-v1"
+    env_id = "gfb_env/RunUp-v2"
     out = _train_quick(tmp_path, "sac", "run", eval_freq=1000, checkpoint_freq=1000, progress_bar=True)
     meta = json.loads((out / "run.json").read_text())
     assert meta["interrupted"] is True
@@ -272,7 +273,7 @@ def test_policies_with_memory_train_and_play_like_in_training(tmp_path, algo, fr
     wrapper's view (VecNormalize + VecFrameStack / LSTM state) in the benchmark's episode loop."""
     from stable_baselines3.common.vec_env import DummyVecEnv, VecFrameStack, VecNormalize
 
-    env_id = "gfb_env/RunUp-v1"
+    env_id = "gfb_env/RunUp-v2"
     out = _train_quick(tmp_path, algo, "m", timesteps=128, frame_stack=frame_stack, eval_freq=128)
     pol = LearnedPolicy(out, which="final")
     assert pol.algo == algo and pol.frame_stack == frame_stack
@@ -301,7 +302,7 @@ def test_policies_with_memory_train_and_play_like_in_training(tmp_path, algo, fr
 def test_train_cli_trains_several_seeds_and_the_ladder_registers_them(tmp_path):
     from gfb_agents import ladder
 
-    env_id = "gfb_env/RunUp-v1"
+    env_id = "gfb_env/RunUp-v2"
     yml = _tiny_yaml(tmp_path, "ppo", env_id)
     args = ["--algo", "ppo", "--env", env_id, "--timesteps", "64", "--seeds", "0-1", "--n-envs", "1"]
     args += ["--out", str(tmp_path / "exp"), "--hyperparams", str(yml), "--eval-episodes", "1"]
@@ -380,6 +381,7 @@ def test_train_cli_rejects_bad_arguments(capsys, tmp_path, argv, fragment):
 def test_benchmark_quick_writes_table_and_resumes_from_its_cache(tmp_path, capsys):
     from gfb_experiments.benchmark_agents import CACHE_DIR, COLUMNS, main
 
+    # the retired v1 ids: the record path of the runner (make_retired); v2's judge: test_v2_judge.py
     tasks = "gfb_env/RunUp-v1,gfb_env/WhirlRecovery-v1"
     short = json.dumps({t: {"max_episode_steps": 12} for t in tasks.split(",")})
     args = ["--quick", "--out", str(tmp_path), "--no-learned", "--tasks", tasks, "--env-kwargs", short]
@@ -474,7 +476,7 @@ def test_committed_policies_load_and_act():
     assert {p.env_id for p in pols} == set(V1_TASKS)
     assert "RunUpRandomized-v1_sac/seed4" in {p.name for p in pols}
     for pol in pols:
-        env = gym.make(pol.env_id, max_episode_steps=5)
+        env = make_env(pol.env_id, max_episode_steps=5)  # the v1 policies: on the retired v1 envs
         n_obs = env.observation_space.shape[0]  # a frame-stack policy sees its last frame_stack observations
         assert pol.model.observation_space.shape == (pol.frame_stack * n_obs,), pol.name
         res = run_episode(env, pol, seed=0)
@@ -487,6 +489,8 @@ def test_committed_policies_load_and_act():
     [
         ({"algo": "dqn"}, "algo"),
         ({"algo": "ppo", "env_id": "gfb_env/Nope-v0"}, "unknown env id"),
+        # a retired id: why, and the v2 id to train on (RetiredTaskError is a ValueError)
+        ({"algo": "ppo", "env_id": "gfb_env/RunUp-v1"}, "RunUp-v1 is retired .* Use gfb_env/RunUp-v2"),
         ({"algo": "ppo", "timesteps": 0}, "timesteps"),
         ({"algo": "sac", "n_envs": 1.5}, "n_envs"),
         ({"algo": "sac", "eval_freq": 0}, "eval_freq"),
@@ -498,6 +502,6 @@ def test_committed_policies_load_and_act():
 def test_train_config_refuses_bad_fields_by_name(kwargs, name):
     with pytest.raises(ValueError, match=name):
         TrainConfig(**kwargs)
-    cfg = TrainConfig("PPO", "gfb_env/RunUp-v1", out="runs/x")
+    cfg = TrainConfig("PPO", "gfb_env/RunUp-v2", out="runs/x")
     assert cfg.algo == "ppo" and cfg.task == "RunUp" and cfg.as_dict()["out"] == "runs/x"
-    assert TrainConfig("sac", "gfb_env/RunUp-v1", seed=3).run_dir().as_posix() == "runs/RunUp-v1_sac/seed3"
+    assert TrainConfig("sac", "gfb_env/RunUp-v2", seed=3).run_dir().as_posix() == "runs/RunUp-v2_sac/seed3"

@@ -9,7 +9,6 @@ import inspect
 import pkgutil
 import shutil
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -20,6 +19,7 @@ from gfb_agents.policy import Policy, PrivilegedPolicy
 from gfb_agents.rules.margin_search import MarginSearchAgent, MarginSearchMemory, Mode
 from gfb_agents.rules.operating_point import OperatingPointConfig
 from gfb_agents.rules.recovery import RecoveryAgent, RecoveryMemory
+from gfb_env.envs import make_env
 
 
 def _modules():
@@ -30,11 +30,12 @@ def _modules():
     return out
 
 
-def test_every_ladder_agent_is_a_policy_with_the_one_reset_signature():
-    env = gym.make("gfb_env/RunUp-v1", max_episode_steps=3)
+@pytest.mark.parametrize("task", ["gfb_env/RunUp-v2", "gfb_env/RunUp-v1"])  # current; retired (record)
+def test_every_ladder_agent_is_a_policy_with_the_one_reset_signature(task):
+    env = make_env(task, max_episode_steps=3)
     obs, _ = env.reset(seed=0)
     for name, entry in ladder.registered().items():
-        if entry.kind == "learned" or "gfb_env/RunUp-v1" not in entry.tasks:
+        if entry.kind == "learned" or task not in entry.tasks:
             continue
         pol = ladder.build(name, env)
         assert isinstance(pol, Policy) and pol.name == name
@@ -64,7 +65,7 @@ def test_the_ladder_is_the_only_factory_of_agents():
     }
     assert factories == {"gfb_agents.learned.train.make_vec_env_for"}
     with pytest.raises(LookupError, match="no agent 'bogus' in the ladder; known: .*margin_search"):
-        ladder.build("bogus", gym.make("gfb_env/RunUp-v1"))
+        ladder.build("bogus", make_env("gfb_env/RunUp-v2"))
 
 
 def test_load_learned_policies_finds_single_and_multi_seed_folders(tmp_path):
@@ -84,7 +85,7 @@ def test_load_learned_policies_finds_single_and_multi_seed_folders(tmp_path):
 
 
 def test_margin_search_memory_is_typed_and_its_modes_dispatch_one_method_each(monkeypatch):
-    env = gym.make("gfb_env/RunUp-v1")
+    env = make_env("gfb_env/RunUp-v1")
     pol = MarginSearchAgent(env.unwrapped)
     m = pol._new_memory()
     assert dataclasses.is_dataclass(m) and isinstance(m, MarginSearchMemory)
@@ -93,7 +94,7 @@ def test_margin_search_memory_is_typed_and_its_modes_dispatch_one_method_each(mo
     assert set(pol.MODE_HANDLERS) == set(Mode) - {Mode.DIP}
     assert set(RecoveryAgent.MODE_HANDLERS) == set(Mode)
     assert isinstance(
-        RecoveryAgent(gym.make("gfb_env/WhirlRecovery-v1").unwrapped)._new_memory(), RecoveryMemory
+        RecoveryAgent(make_env("gfb_env/WhirlRecovery-v1").unwrapped)._new_memory(), RecoveryMemory
     )
     # each mode calls its own handler, and only it
     for mode, handler in pol.MODE_HANDLERS.items():

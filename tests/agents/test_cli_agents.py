@@ -22,7 +22,7 @@ from gfb_agents.learned.train import MAX_FRAME_STACK, TrainConfig, load_hyperpar
 from gfb_experiments.benchmark_agents import main as bench_main
 from gfb_experiments.train import main as train_main
 
-ENV = "gfb_env/RunUp-v1"
+ENV = "gfb_env/RunUp-v2"
 PROC_OUT = "/proc/nonexistent/x"  # the issue's folder: check_output_dir lets root pass, mkdir fails
 
 
@@ -154,8 +154,8 @@ def _bench(tmp_path: Path, *extra: str) -> list[str]:
         (["--env-kwargs", json.dumps({ENV: {"bogus": 1}})], "unknown environment argument 'bogus'"),
         (["--out", PROC_OUT], f"--out {PROC_OUT}: cannot write"),
         # defect 8
-        (["--agents", "bogus"], "unknown agent 'bogus'; agents of the tasks: hold, map_informed_v1"),
-        (["--agents", "recovery"], "'recovery' plays none of the tasks gfb_env/RunUp-v1"),
+        (["--agents", "bogus"], "unknown agent 'bogus'; agents of the tasks: hold, margin_search"),
+        (["--agents", "recovery"], "'recovery' plays none of the tasks gfb_env/RunUp-v2"),
         (["--agents", ""], "--agents names nothing"),
         (["--agents", "naive,,oracle_v1"], "--agents has an empty name"),
         (["--tasks", ""], "--tasks names nothing"),
@@ -164,8 +164,8 @@ def _bench(tmp_path: Path, *extra: str) -> list[str]:
             "--env-kwargs: unknown task 'gfb_env/Nope-v1'; known: gfb_env/",
         ),
         (  # a known task outside --tasks may have kwargs (one JSON for several runs), checked all the same
-            ["--env-kwargs", json.dumps({ENV: {}, "gfb_env/WhirlRecovery-v1": {"max_episode_steps": -2}})],
-            "--env-kwargs of gfb_env/WhirlRecovery-v1: Expect the `max_episode_steps` to be positive",
+            ["--env-kwargs", json.dumps({ENV: {}, "gfb_env/WhirlRecovery-v2": {"max_episode_steps": -2}})],
+            "--env-kwargs of gfb_env/WhirlRecovery-v2: Expect the `max_episode_steps` to be positive",
         ),
     ],
 )
@@ -267,7 +267,7 @@ def test_a_kill_between_the_renames_is_finished_on_resume(tmp_path):
 
 # ------------------------------------------------------------------ resume bookkeeping (14)
 def _train_tiny(tmp_path: Path, algo: str = "ppo", **overrides) -> Path:
-    """A tiny run on RunUp-v1 (8-step episodes, 16-step PPO rollouts, one env, an 8-unit net)."""
+    """A tiny run on RunUp-v2 (8-step episodes, 16-step PPO rollouts, one env, an 8-unit net)."""
     kwargs = dict(
         timesteps=64,
         seed=0,

@@ -16,13 +16,14 @@ from gfb_agents.nominal_map import NominalMap
 from gfb_agents.policy import ControlSpec
 from gfb_agents.rules.identify_map import IdentifyingAgent
 from gfb_agents.rules.map_informed import MapInformedAgent
+from gfb_env.envs import make_env
 
 RANDOMIZED = "gfb_env/RunUpRandomized-v1"
 
 
 @pytest.fixture(scope="module")
 def renv():
-    env = gym.make(RANDOMIZED)
+    env = make_env(RANDOMIZED)
     yield env
     env.close()
 
@@ -90,7 +91,7 @@ def _envs_in(obj, seen=None) -> list:
 def test_identify_map_reads_only_the_observation(renv):
     """Built from an env that was never reset (no episode exists), holding no env, and fed only the
     observation of another env's episode, the rule's estimate is the fit of that observation."""
-    agent = IdentifyingAgent(gym.make(RANDOMIZED))
+    agent = IdentifyingAgent(make_env(RANDOMIZED))
     assert _envs_in(agent) == []
     agent = pickle.loads(pickle.dumps(agent))  # no live env, no simulator state inside
     obs, info = renv.reset(seed=4)
@@ -108,7 +109,7 @@ def test_identify_map_reads_only_the_observation(renv):
 
 
 def test_identify_map_is_map_informed_on_a_nominal_task():
-    env = gym.make("gfb_env/RunUp-v1", max_episode_steps=30)
+    env = make_env("gfb_env/RunUp-v1", max_episode_steps=30)
     nmap = NominalMap.from_env(env)
     ref = run_episode(env, MapInformedAgent(ControlSpec.from_env(env, nmap), nmap), seed=3)
     agent = IdentifyingAgent(env)

@@ -32,7 +32,7 @@ from gfb_agents.learned.train import TrainConfig, load_hyperparams, make_vec_env
 from gfb_agents.learned.vec_env import PrivilegedVecEnv
 from gfb_experiments.train import main as train_main
 
-ENV = "gfb_env/RunUp-v1"
+ENV = "gfb_env/RunUp-v2"
 ALGO = "asymmetric_ppo"
 
 
@@ -62,7 +62,7 @@ def _expected(hidden: dict) -> list[float]:
     ]
 
 
-@pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1"])
+@pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v2", "gfb_env/RunUpRandomized-v2"])
 def test_the_privileged_vector_is_hidden_parameters_in_the_documented_order(env_id):
     n = 2
     kw = {"max_episode_steps": 2, "privileged_info": True}
@@ -101,7 +101,7 @@ def test_the_privileged_vector_is_hidden_parameters_in_the_documented_order(env_
     env.reset(seed=3)
     v = episode_vector(env.unwrapped.hidden_parameters())
     assert v.dtype == np.float32 and v.shape == (len(EPISODE_FIELDS),)
-    assert v[EPISODE_FIELDS.index("bearing_drawn")] == 0.0  # RunUp-v1: the nominal bearing
+    assert v[EPISODE_FIELDS.index("bearing_drawn")] == 0.0  # RunUp-v2: the nominal bearing
     assert v[0] == pytest.approx(math.log(env.unwrapped.damping_gain), rel=1e-6)
     # step quantities need the opt-in channel: one line
     with pytest.raises(ValueError, match="privileged_info=True"):
@@ -276,7 +276,8 @@ def test_the_teacher_reads_the_privileged_vector_and_is_not_deployable(teacher_r
     assert meta["best_validation"] is not None  # validated with the hidden draws handed over
     teacher, _ = load_teacher(teacher_run)
     rng = np.random.default_rng(1)
-    obs = rng.normal(size=(3, 18)).astype(np.float32)
+    n_obs = gym.make(ENV).observation_space.shape[0]  # the task's observation (v2: 30 entries)
+    obs = rng.normal(size=(3, n_obs)).astype(np.float32)
     priv = rng.normal(size=(3, len(EPISODE_FIELDS))).astype(np.float32)
     a1 = teacher.act(obs, priv, np.ones(3, bool))
     teacher.reset()
@@ -330,7 +331,8 @@ def test_the_student_is_distilled_by_dagger_resumes_and_deploys_from_the_observa
         ts.distill(ts.DistillConfig(**{**cfg.as_dict(), "timesteps": 96}))
     # deployed: the student alone, on an env without the privileged channel; exported small
     pol = LearnedPolicy(out)
-    assert isinstance(pol.model, DeployedActor) and pol.model.obs_dim == 3 * 18
+    n_obs = gym.make(ENV).observation_space.shape[0]
+    assert isinstance(pol.model, DeployedActor) and pol.model.obs_dim == 3 * n_obs  # a 3-frame stack
     res = run_episode(gym.make(ENV, max_episode_steps=4), pol, seed=seeds.VALIDATION.first(1)[0])
     assert res.steps == 4 and math.isfinite(res.episode_return)
     dest = export_policy(out, "student", root=tmp_path / "policies")
@@ -345,7 +347,7 @@ def test_the_student_is_distilled_by_dagger_resumes_and_deploys_from_the_observa
         (["--teacher", "{ppo}"], "the teacher is a privileged_ppo run"),
         (["--teacher", "{teacher}", "--frame-stack", "4"], "--frame-stack: not with --algo teacher_student"),
         (["--teacher", "{teacher}", "--hyperparams", "{bad}"], "hyperparameters ['bogus'] unknown"),
-        (["--teacher", "{teacher}", "--env", "gfb_env/WhirlRecovery-v1"], "the teacher was trained on"),
+        (["--teacher", "{teacher}", "--env", "gfb_env/WhirlRecovery-v2"], "the teacher was trained on"),
     ],
 )
 def test_teacher_student_bad_options_are_refused_with_one_line(

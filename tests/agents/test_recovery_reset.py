@@ -3,7 +3,6 @@ information only, in the WhirlRecovery rule."""
 
 from __future__ import annotations
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -15,6 +14,7 @@ from gfb_agents.estimation.whirl_start import (
     reset_log_likelihood,
     whirl_start_table,
 )
+from gfb_env.envs import make_env
 
 ENV = "gfb_env/WhirlRecovery-v1"
 #: DEV seeds (unit tests): their gains span the prior
@@ -76,7 +76,7 @@ def test_posterior_is_much_sharper_than_the_prior_at_reset_and_sharper_still_aft
     """The posterior mean of ln g after the reset observation errs by far less than the prior's sd (a
     rule that ignored the reset observation would keep the prior: its rms error ~0.3 on these draws),
     and after the first step's particle update by less again."""
-    env = gym.make(ENV)
+    env = make_env(ENV)
     pol = ladder.build("recovery_reset", env)  # one rule: its stability table is computed once
     m0, m1, truth = np.array([_posterior_means_and_truth(pol, s, env) for s in SEEDS]).T
     err0, err1, prior_err = m0 - truth, m1 - truth, 0.5 * np.log(0.6 * 1.8) - truth
@@ -91,7 +91,7 @@ def test_posterior_is_much_sharper_than_the_prior_at_reset_and_sharper_still_aft
 def test_reset_likelihood_peaks_at_the_truth_for_an_exact_observation():
     """The table's noise-free observation at a (gain, phase) of the grid, with the sensor model's mean
     error, has its likelihood's maximum at that gain."""
-    env = gym.make(ENV)
+    env = make_env(ENV)
     table = whirl_start_table(env)
     sensors = ResetSensorModel.from_env(env)
     for i, j in ((5, 300), (20, 900), (35, 1500)):
@@ -105,7 +105,7 @@ def test_reset_likelihood_peaks_at_the_truth_for_an_exact_observation():
 def test_rule_reads_no_private_or_hidden_state_and_plays_a_whole_episode():
     """Built on a view of the env that raises on anything private or hidden, fed only observations (no
     info), the rule plays a whole episode with finite actions in [-1, 1]."""
-    env = gym.make(ENV)
+    env = make_env(ENV)
     pol = ladder.build("recovery_reset", PublicView(env.unwrapped))
     pol.reset()
     obs, _ = env.reset(seed=2)
@@ -125,11 +125,11 @@ def test_rule_reads_no_private_or_hidden_state_and_plays_a_whole_episode():
 def test_rule_is_deterministic_with_the_seed():
     """Two fresh envs on one seed, the rule reset between them: the same actions, bit for bit (through
     the reset's and the first step's updates and the dip)."""
-    env0 = gym.make(ENV)
+    env0 = make_env(ENV)
     pol = ladder.build("recovery_reset", env0)
     runs = []
     for _ in range(2):
-        env = gym.make(ENV)
+        env = make_env(ENV)
         pol.reset()
         obs, _ = env.reset(seed=4)
         acts = []
@@ -148,7 +148,7 @@ def test_rule_is_deterministic_with_the_seed():
 
 def test_reset_entries_are_read_by_name():
     """The rule finds its entries through the observation's layout (v2 adds entries before the last two)."""
-    env = gym.make(ENV)
+    env = make_env(ENV)
     pol = ladder.build("recovery_reset", env)
     layout = env.unwrapped.observation_layout
     assert [layout.names[i] for i in pol._entries] == list(pol.start_table.names)
@@ -163,7 +163,7 @@ def test_reset_entries_are_read_by_name():
 def test_probe_is_skipped_only_when_the_posterior_is_sharp():
     """After the dip the unbalance probe runs while the posterior sd of ln g is >= probe_sd (0.06), and
     is skipped below; probe_sd = 0 probes always, as recovery."""
-    env = gym.make(ENV)
+    env = make_env(ENV)
     pol = ladder.build("recovery_reset", env)
     m = pol._new_memory()
     assert pol._wants_probe(m)  # the prior: sd 0.32

@@ -5,7 +5,6 @@ only (< 10000)."""
 
 from __future__ import annotations
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -16,6 +15,7 @@ from gfb_agents.estimation.identification import BearingIdentifier, identify_bea
 from gfb_agents.estimation.stability import StabilityTable
 from gfb_agents.ladder import build as make_rule
 from gfb_agents.rules.operating_point import OperatingPointConfig, choose_operating_point
+from gfb_env.envs import make_env
 from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.envs.base import viscoelastic_model
 from gfb_experiments.rules_check import RULE_NAMES
@@ -70,7 +70,7 @@ def test_decay_meter_measures_a_synthetic_decay():
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_identify_bearing_from_noisy_observations(seed):
-    env = gym.make("gfb_env/RunUpRandomized-v1")
+    env = make_env("gfb_env/RunUpRandomized-v1")
     u = env.unwrapped
     obs, info = env.reset(seed=seed)
     obsl = [obs]
@@ -89,7 +89,7 @@ def test_identify_bearing_from_noisy_observations(seed):
 
 def test_refine_bearing_removes_the_sensor_biases_along_the_run_up():
     # seed 0: the start-speed fit is 2.9 % off in C and 6.9 % in f_K (lambda_best -5.3 %): the biases
-    env = gym.make("gfb_env/RunUpRandomized-v1")
+    env = make_env("gfb_env/RunUpRandomized-v1")
     u = env.unwrapped
     lay = u.observation_layout
     obs, info = env.reset(seed=0)
@@ -125,7 +125,7 @@ def test_refine_bearing_removes_the_sensor_biases_along_the_run_up():
     ],
 )
 def test_rules_run_short_episodes_with_finite_actions(env_id, rule):
-    env = gym.make(env_id)
+    env = make_env(env_id)
     pol = make_rule(rule, env)
     obs, info = env.reset(seed=3)
     for k in range(12):
@@ -140,7 +140,7 @@ def test_rules_run_short_episodes_with_finite_actions(env_id, rule):
 
 def test_recovery_starts_from_the_prior_over_the_gain():
     """WhirlRecovery-v1's reset observation no longer reveals g: the rule's posterior is its prior."""
-    env = gym.make("gfb_env/WhirlRecovery-v1")
+    env = make_env("gfb_env/WhirlRecovery-v1")
     pol = make_rule("recovery", env)
     obs, info = env.reset(seed=5)
     pol.predict(obs, episode_start=True)
@@ -155,7 +155,7 @@ def test_recovery_survival_weighs_down_the_gains_outside_the_window():
     window (they touch down within two steps on the training seeds) lose a factor survival_odds."""
     from gfb_agents.rules.recovery import RecoveryAgent
 
-    env = gym.make("gfb_env/WhirlRecovery-v1")
+    env = make_env("gfb_env/WhirlRecovery-v1")
     pol = RecoveryAgent(env.unwrapped)
     m = pol._new_memory()
     m.d_start = 3.2  # (the task's start command d_opt = 2.24 keeps every gain of its prior inside)
@@ -175,7 +175,7 @@ def test_recovery_probe_speed_keeps_every_plausible_plant_stable():
     model = viscoelastic_model("31x7", NOMINAL_BEARING)
     table = StabilityTable.compute(model, 0.50, 0.70, n_lambda=9, damping_range=(0.1, 10.0), n_damping=11)
 
-    env = gym.make("gfb_env/WhirlRecovery-v1")
+    env = make_env("gfb_env/WhirlRecovery-v1")
     pol = RecoveryAgent(env.unwrapped)
     m = pol._new_memory()
     m.table = table
@@ -193,7 +193,7 @@ def test_recovery_probe_speed_keeps_every_plausible_plant_stable():
 def test_recovery_decisions_depend_only_on_the_observations():
     """The rule bound to an env whose hidden gain differs, fed the observations of another episode,
     takes the same actions as the rule that played it: it reads no hidden parameter."""
-    env_a, env_b = gym.make("gfb_env/WhirlRecovery-v1"), gym.make("gfb_env/WhirlRecovery-v1")
+    env_a, env_b = make_env("gfb_env/WhirlRecovery-v1"), make_env("gfb_env/WhirlRecovery-v1")
     pol_a, pol_b = make_rule("recovery", env_a), make_rule("recovery", env_b)
     obs, _ = env_a.reset(seed=0)
     env_b.reset(seed=3)  # another hidden gain: 0.66 (seed 0 draws 1.21)
@@ -213,7 +213,7 @@ def test_recovery_learns_the_gain_and_ends_certified(seed):
     """Training seeds 0 (g = 1.21) and 6 (g = 1.08): after the dip, the survival evidence, the decays and
     the unbalance probe, the posterior mean of ln g is within 0.2 of the truth and the end is certified
     within 5 % of lambda_best."""
-    env = gym.make("gfb_env/WhirlRecovery-v1")
+    env = make_env("gfb_env/WhirlRecovery-v1")
     u = env.unwrapped
     pol = make_rule("recovery", env)
     obs, info = env.reset(seed=seed)
@@ -231,7 +231,7 @@ def test_recovery_learns_the_gain_and_ends_certified(seed):
 
 
 def test_make_rule_names():
-    env = gym.make("gfb_env/RunUp-v1")
+    env = make_env("gfb_env/RunUp-v1")
     for name in RULE_NAMES:
         assert make_rule(name, env).name == name
     with pytest.raises(LookupError, match="no agent 'nope' in the ladder"):
@@ -253,7 +253,7 @@ def test_creep_raises_the_set_point_until_the_time_runs_short():
     onset, and keeps the highest calm speed when the time runs short."""
     from gfb_agents.rules.margin_search import MarginSearchAgent, Mode
 
-    env = gym.make("gfb_env/RunUp-v1")
+    env = make_env("gfb_env/RunUp-v1")
     u = env.unwrapped
     pol = MarginSearchAgent(u, creep_rate=0.01, creep_margin=0.015)
     assert MarginSearchAgent(u).creep_rate == 0.0  # the default rule does not creep

@@ -25,7 +25,7 @@ def _kw(env_id: str) -> dict:
     return {**FAST, **dist, "max_episode_steps": 3}
 
 
-@pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1"])
+@pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v2", "gfb_env/RunUpRandomized-v2"])
 def test_adapter_is_dummy_vec_env_bit_for_bit(env_id):
     n, kw = 3, _kw(env_id)
     native = make_vec_env_for(env_id, n, seed=5, env_kwargs=kw, vec_env="native")
@@ -58,7 +58,7 @@ def test_adapter_is_dummy_vec_env_bit_for_bit(env_id):
 
 
 def test_vec_normalize_over_the_native_env_matches_dummy():
-    env_id, n = "gfb_env/WhirlRecovery-v1", 2
+    env_id, n = "gfb_env/WhirlRecovery-v2", 2
     native = VecNormalize(make_vec_env_for(env_id, n, seed=1, env_kwargs=_kw(env_id), vec_env="native"))
     dummy = VecNormalize(make_vec_env(env_id, n_envs=n, seed=1, env_kwargs=_kw(env_id)))
     assert np.array_equal(native.reset(), dummy.reset())
@@ -73,7 +73,7 @@ def test_vec_normalize_over_the_native_env_matches_dummy():
 
 
 def test_train_with_the_native_vector_env(tmp_path):
-    env_id = "gfb_env/RunUp-v1"
+    env_id = "gfb_env/RunUp-v2"
     cfg = TrainConfig(
         "ppo",
         env_id,

@@ -173,7 +173,7 @@ def test_the_benchmark_path_figure_draws_the_tasks_hysteresis_band(tmp_path, mon
     import gfb_experiments.benchmark_agents as bench
     from gfb_agents.nominal_map import NominalMap
 
-    env = gym.make("gfb_env/RunUp-v1")
+    env = gym.make("gfb_env/RunUp-v2")
     nmap = NominalMap.from_env(env)
     assert len(nmap.fold) == 0  # what the agents read: unchanged
     band = bench.nominal_band_lower(env)
@@ -184,8 +184,8 @@ def test_the_benchmark_path_figure_draws_the_tasks_hysteresis_band(tmp_path, mon
     titles = []
     monkeypatch.setattr("matplotlib.axes.Axes.set_title", lambda ax, t, **kw: titles.append(t))
     paths = {
-        ("gfb_env/RunUp-v1", "naive"): {"lam": [0.4, 0.6], "dw": [2.0, 2.0], "reason": "", "success": True}
+        ("gfb_env/RunUp-v2", "naive"): {"lam": [0.4, 0.6], "dw": [2.0, 2.0], "reason": "", "success": True}
     }
-    bench.plot_paths(paths, nmap, tmp_path / "p.png", ["gfb_env/RunUp-v1"], band)
+    bench.plot_paths(paths, nmap, tmp_path / "p.png", ["gfb_env/RunUp-v2"], band)
     assert (tmp_path / "p.png").exists() and not any("not mapped" in t for t in titles)
     env.close()

@@ -247,8 +247,8 @@ def test_command_range_outside_the_motor_is_refused():
 
     for bad in [(0.0, 1e12), (45_000.0, 1e12)]:
         with pytest.raises(ValueError, match=r"^command_range_rpm must lie above the start speed"):
-            gym.make("gfb_env/RunUpRandomized-v1", command_range_rpm=bad)
-    env = gym.make("gfb_env/RunUpRandomized-v1", command_range_rpm=(45_000.0, 50_000.0))
+            gym.make("gfb_env/RunUpRandomized-v2", command_range_rpm=bad)
+    env = gym.make("gfb_env/RunUpRandomized-v2", command_range_rpm=(45_000.0, 50_000.0))
     assert env.unwrapped.command_range_rpm == (45_000.0, 50_000.0)
 
 

@@ -256,7 +256,7 @@ def test_grid_size_limit_reaches_gym_make():
     import gfb_env.envs  # noqa: F401
 
     with pytest.raises(ValueError, match="^grid 2001x201 is too large"):
-        gym.make("gfb_env/RunUp-v1", grid="2001x201")
+        gym.make("gfb_env/RunUp-v2", grid="2001x201")
 
 
 def test_find_equilibrium_lives_in_its_own_module_and_is_re_exported():

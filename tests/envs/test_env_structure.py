@@ -88,7 +88,7 @@ def test_bad_constructor_arguments_are_refused_by_name(env_id, kwargs, name):
 
 def test_observe_parameters_must_be_a_bool():
     with pytest.raises(ValueError, match="observe_parameters"):
-        gym.make("gfb_env/RunUpRandomized-v1", observe_parameters="no")
+        gym.make("gfb_env/RunUpRandomized-v2", observe_parameters="no")
 
 
 def test_control_interval_range_is_documented_and_enforced():
@@ -101,7 +101,7 @@ def test_control_interval_range_is_documented_and_enforced():
 
 def test_integrator_options_reach_the_integrator_and_the_touchdown_threshold_is_the_envs():
     env = gym.make(
-        "gfb_env/WhirlRecovery-v1", integrator_options={"rtol": 1e-3}, touchdown_film_thickness=0.05, **FAST
+        "gfb_env/WhirlRecovery-v2", integrator_options={"rtol": 1e-3}, touchdown_film_thickness=0.05, **FAST
     ).unwrapped
     env.reset(seed=0)
     assert env._integ.options.rtol == 1e-3
@@ -109,7 +109,7 @@ def test_integrator_options_reach_the_integrator_and_the_touchdown_threshold_is_
     assert IntegratorOptions.from_mapping({"rtol": 1e-3}).atol == IntegratorOptions().atol
 
 
-@pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v1", "gfb_env/WhirlRecovery-v1"])
+@pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v2", "gfb_env/WhirlRecovery-v2"])
 def test_tasks_without_options_refuse_any(env_id):
     env = gym.make(env_id, **FAST)
     with pytest.raises(ValueError, match="clearance_m"):
@@ -119,16 +119,17 @@ def test_tasks_without_options_refuse_any(env_id):
 
 
 def test_randomized_reset_options_are_checked_and_fix_the_draw():
-    env = gym.make("gfb_env/RunUpRandomized-v1", **FAST)
+    env = gym.make("gfb_env/RunUpRandomized-v2", **FAST)
     with pytest.raises(ValueError, match="clearence_m"):  # a typo is not silently a random draw
         env.reset(seed=0, options={"clearence_m": 50e-6})
     with pytest.raises(ValueError, match="'load_n' must lie in"):
         env.reset(seed=0, options={"load_n": 1e6})
     with pytest.raises(ValueError, match="stiffness_factor"):
         env.reset(seed=0, options={"stiffness_factor": math.nan})
-    _, info = env.reset(seed=0, options={"clearance_m": 50e-6, "stiffness_factor": 1.0, "load_n": 20.0})
-    assert info["clearance_um"] == pytest.approx(50.0) and info["load_n"] == 20.0
-    assert info["stiffness_factor"] == 1.0
+    env.reset(seed=0, options={"clearance_m": 50e-6, "stiffness_factor": 1.0, "load_n": 20.0})
+    b = env.unwrapped.hidden_parameters()["bearing"]  # the draw is hidden: the privileged channel tells it
+    assert b["clearance_um"] == pytest.approx(50.0) and b["load_n"] == 20.0
+    assert b["stiffness_factor"] == 1.0
 
 
 # ---- episode, snapshots, failures -------------------------------------------------------------
@@ -145,7 +146,7 @@ def test_integrator_steps_count_the_episode_across_kicks():
 
 
 def test_episode_copy_shares_the_plant_and_copies_the_rest():
-    env = gym.make("gfb_env/RunUp-v1", **FAST).unwrapped
+    env = gym.make("gfb_env/RunUp-v2", **FAST).unwrapped
     env.reset(seed=0)
     env.step(np.array([1.0, 0.0], dtype=np.float32))
     ep = env.episode
@@ -157,7 +158,7 @@ def test_episode_copy_shares_the_plant_and_copies_the_rest():
 
 
 def test_step_survives_numerical_failures_only(monkeypatch):
-    env = gym.make("gfb_env/RunUp-v1", **FAST).unwrapped
+    env = gym.make("gfb_env/RunUp-v2", **FAST).unwrapped
     env.reset(seed=0)
 
     def fail(*a, **k):

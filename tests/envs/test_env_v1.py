@@ -1,56 +1,28 @@
 """The v1 tasks: the instrumented machine (actuator, sensors, base shocks, residual unbalance) wired
-into the environments; the classes alone keep the ideal machine; the v0 ids are retired."""
+into the environments; the classes alone keep the ideal machine.  The v1 ids are retired (issue 19; the
+refusals: tests/envs/test_retired.py): their envs are built for the record by ``make_retired``."""
 
 from __future__ import annotations
 
 import math
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
 from gfb_env.envs import (
-    ENV_IDS,
     MACHINE_V1,
-    RETIRED_IDS,
-    RetiredTaskError,
+    RETIRED_V1_IDS,
     RunUpEnv,
     RunUpRandomizedEnv,
     WhirlRecoveryEnv,
+    make_retired,
 )
 from gfb_env.forcing import Unbalance
 from gfb_env.machine import RotorBalance, ShockArrivals
 from gfb_env.params import BearingParameters
 
 FAST = {"control_interval": 20.0}
-V1_IDS = tuple(i for i in ENV_IDS if i.endswith("-v1"))
-
-
-def test_the_tasks_are_the_v1_ids():
-    assert ENV_IDS == V1_IDS and len(V1_IDS) == 3
-    assert set(RETIRED_IDS.values()) == set(V1_IDS)
-    assert {i.replace("-v0", "-v1") for i in RETIRED_IDS} == set(V1_IDS)
-
-
-@pytest.mark.parametrize("env_id", sorted(RETIRED_IDS))
-def test_a_retired_id_raises_one_clear_error(env_id):
-    """gym.make and gym.make_vec (every vectorization mode) of a v0 id: one error that says why and
-    which id to use."""
-    import gymnasium.error
-
-    new = RETIRED_IDS[env_id]
-    makers = [
-        lambda: gym.make(env_id),
-        lambda: gym.make(env_id, **FAST),
-        lambda: gym.make_vec(env_id, num_envs=2),
-        lambda: gym.make_vec(env_id, num_envs=2, vectorization_mode="sync"),
-    ]
-    for make in makers:
-        with pytest.raises(RetiredTaskError) as err:
-            make()
-        msg = str(err.value)
-        assert env_id in msg and f"Use {new}" in msg and "identifiable" in msg and "CHANGELOG.md" in msg
-        assert isinstance(err.value, gymnasium.error.Error) and isinstance(err.value, ValueError)
+V1_IDS = RETIRED_V1_IDS
 
 
 def test_rotor_balance_draws_an_iso_grade_and_a_phase():
@@ -81,7 +53,7 @@ def test_rotor_balance_draws_an_iso_grade_and_a_phase():
 
 @pytest.mark.parametrize("env_id", V1_IDS)
 def test_v1_episode_carries_its_unbalance_into_the_integrator(env_id):
-    env = gym.make(env_id, **FAST)
+    env = make_retired(env_id, **FAST)
     u = env.unwrapped
     _, info = env.reset(seed=4)
     grade = info["balance_grade_mm_s"]
@@ -112,8 +84,8 @@ def test_the_class_alone_is_the_ideal_machine_without_unbalance_or_shocks(cls):
 
 def test_shocks_arrive_reach_the_integrator_and_move_the_rotor():
     kw = {**FAST, "rotor_balance": RotorBalance.perfect()}
-    quiet = gym.make("gfb_env/RunUp-v1", shock_arrivals=ShockArrivals.none(), **kw).unwrapped
-    shaken = gym.make("gfb_env/RunUp-v1", shock_arrivals={"rate_per_s": 300.0}, **kw).unwrapped
+    quiet = make_retired("gfb_env/RunUp-v1", shock_arrivals=ShockArrivals.none(), **kw).unwrapped
+    shaken = make_retired("gfb_env/RunUp-v1", shock_arrivals={"rate_per_s": 300.0}, **kw).unwrapped
     a = np.array([0.0, 0.0], dtype=np.float32)
     quiet.reset(seed=0)
     shaken.reset(seed=0)
@@ -133,5 +105,5 @@ def test_shocks_arrive_reach_the_integrator_and_move_the_rotor():
 
 def test_kicks_and_shocks_exclude_each_other():
     with pytest.raises(ValueError, match="disturbance_probability"):
-        gym.make("gfb_env/RunUp-v1", disturbance_probability=0.1)
+        make_retired("gfb_env/RunUp-v1", disturbance_probability=0.1)
     assert MACHINE_V1["disturbance_probability"] == 0.0

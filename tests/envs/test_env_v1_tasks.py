@@ -1,33 +1,41 @@
 """The v1 task definitions (issue 11): the observed speed command and remaining time, the fixed horizon,
 the stability certificate of the actual plant, the reward terms, the costs, the hidden damping gain and
-the exact best stable operating point."""
+the exact best stable operating point.  The v1 ids are retired (issue 19): their envs are built for the
+record by ``make_retired``; v2 is these tasks behind the information interface
+(tests/envs/test_v2_contract.py), so these tests also guard the task code v2 runs."""
 
 from __future__ import annotations
 
 import math
 
-import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_env.analysis.stability import critical_bearing_number
-from gfb_env.envs import ENV_IDS, V1_DAMPING_GAIN_RANGE, V1_TASK, V1_WHIRL_RECOVERY_GAIN_RANGE
+from gfb_env.envs import (
+    RETIRED_V1_IDS,
+    V1_DAMPING_GAIN_RANGE,
+    V1_TASK,
+    V1_WHIRL_RECOVERY_GAIN_RANGE,
+    make_retired,
+    make_retired_vec,
+)
 from gfb_env.envs.certify import StabilityCertificate, below_best_stable_speed, best_stable_operating_point
 from gfb_env.envs.commanded import CostSpec
 from gfb_env.envs.episode import StepOutcome
 from gfb_env.envs.run_up_randomized import COMMAND_RANGE_RPM
 from gfb_env.envs.units import SPEED_COMMAND, TIME_LEFT
 
-V1_IDS = tuple(i for i in ENV_IDS if i.endswith("-v1"))
+V1_IDS = RETIRED_V1_IDS
 FAST = {"control_interval": 20.0}
 NO_SHOCKS = {"shock_arrivals": {"rate_per_s": 0.0}}
 
 
 @pytest.mark.parametrize("env_id", V1_IDS)
 def test_v1_observation_ends_with_the_command_and_the_time_left(env_id):
-    env = gym.make(env_id, **FAST)
+    env = make_retired(env_id, **FAST)
     u = env.unwrapped
     lay = u.observation_layout
     assert lay.names[-2:] == (SPEED_COMMAND, TIME_LEFT)
@@ -45,7 +53,7 @@ def test_v1_observation_ends_with_the_command_and_the_time_left(env_id):
 
 
 def test_observe_parameters_come_before_the_command():
-    env = gym.make("gfb_env/RunUpRandomized-v1", observe_parameters=True, **FAST)
+    env = make_retired("gfb_env/RunUpRandomized-v1", observe_parameters=True, **FAST)
     lay = env.unwrapped.observation_layout
     assert lay.names[-5:] == ("clearance", "stiffness_factor", "load", SPEED_COMMAND, TIME_LEFT)
     obs, info = env.reset(seed=0)
@@ -53,7 +61,7 @@ def test_observe_parameters_come_before_the_command():
 
 
 def test_the_commands_are_drawn_per_episode_in_their_ranges():
-    run_up = gym.make("gfb_env/RunUp-v1").unwrapped
+    run_up = make_retired("gfb_env/RunUp-v1").unwrapped
     best = run_up.constants["lambda_best"]
     fr = []
     for seed in range(30):
@@ -63,14 +71,14 @@ def test_the_commands_are_drawn_per_episode_in_their_ranges():
         assert cmd.reference_bearing_number == run_up.start_bearing_number
     assert 0.93 <= min(fr) and max(fr) <= 1.03 and len(set(fr)) == 30
     assert 0.2 < np.mean(np.array(fr) > 1.0) < 0.5  # 30 % expected above lambda_best
-    rnd = gym.make("gfb_env/RunUpRandomized-v1").unwrapped
+    rnd = make_retired("gfb_env/RunUpRandomized-v1").unwrapped
     rpms = []
     for seed in range(5):
         _, info = rnd.reset(seed=seed)
         rpms.append(info["speed_command_rpm"])
         assert rnd.speed_command.bearing_number == pytest.approx(rnd.bearing.bearing_number_at(rpms[-1]))
     assert all(COMMAND_RANGE_RPM[0] <= r <= COMMAND_RANGE_RPM[1] for r in rpms) and len(set(rpms)) == 5
-    whirl = gym.make("gfb_env/WhirlRecovery-v1").unwrapped
+    whirl = make_retired("gfb_env/WhirlRecovery-v1").unwrapped
     whirl.reset(seed=0)
     assert whirl.speed_command.bearing_number == whirl.whirl_bearing_number
     assert whirl.speed_command.reference_bearing_number == pytest.approx(
@@ -80,7 +88,7 @@ def test_the_commands_are_drawn_per_episode_in_their_ranges():
 
 @pytest.mark.parametrize("env_id", V1_IDS)
 def test_every_v1_task_hides_the_damping_gain_and_its_horizon_is_the_time_limit(env_id):
-    env = gym.make(env_id)
+    env = make_retired(env_id)
     u = env.unwrapped
     expected = V1_WHIRL_RECOVERY_GAIN_RANGE if "WhirlRecovery" in env_id else V1_DAMPING_GAIN_RANGE
     assert u.damping_actuator.gain_range == pytest.approx(expected)
@@ -96,7 +104,7 @@ def test_every_v1_task_hides_the_damping_gain_and_its_horizon_is_the_time_limit(
         )
     assert len(gains) == 3
     # the nominal optimum is commandable at both ends of the gain range
-    d_opt = gym.make("gfb_env/RunUp-v1").unwrapped.constants["d_opt"]
+    d_opt = make_retired("gfb_env/RunUp-v1").unwrapped.constants["d_opt"]
     for g in V1_DAMPING_GAIN_RANGE:
         assert 0.1 <= d_opt / g <= 10.0
 
@@ -109,7 +117,7 @@ def test_whirl_recovery_v1_gain_range_is_where_the_start_whirl_survives_its_comm
     import dataclasses
 
     act = dataclasses.replace(V1_TASK["damping_actuator"], gain=gain, gain_range=None)
-    env = gym.make("gfb_env/WhirlRecovery-v1", damping_actuator=act, **NO_SHOCKS)
+    env = make_retired("gfb_env/WhirlRecovery-v1", damping_actuator=act, **NO_SHOCKS)
     u = env.unwrapped
     inside = V1_WHIRL_RECOVERY_GAIN_RANGE[0] <= gain <= V1_WHIRL_RECOVERY_GAIN_RANGE[1]
     a = np.array([-1.0, u.action_from_damping(u.constants["d_opt"])], dtype=np.float32)
@@ -130,7 +138,7 @@ def test_whirl_recovery_v1_gain_range_is_where_the_start_whirl_survives_its_comm
 def test_whirl_recovery_v1_starts_on_the_whirl_with_the_map_optimum_commanded():
     """The machine ran with d_opt commanded: actual D_W = g d_opt, and the observation's indicated
     damping is d_opt whatever g (a start at actual d_opt showed d_opt / g and gave g away)."""
-    env = gym.make("gfb_env/WhirlRecovery-v1")
+    env = make_retired("gfb_env/WhirlRecovery-v1")
     u = env.unwrapped
     indicated, gains = set(), set()
     for seed in (1, 2):
@@ -148,7 +156,7 @@ def test_whirl_recovery_v1_starts_on_the_whirl_with_the_map_optimum_commanded():
 @pytest.mark.parametrize("env_id", V1_IDS)
 def test_fixed_horizon_terminates_at_the_last_step(env_id):
     steps = 4
-    env = gym.make(env_id, episode_steps=steps, hold_steps=2, **FAST)
+    env = make_retired(env_id, episode_steps=steps, hold_steps=2, **FAST)
     env.reset(seed=0)
     for k in range(1, steps + 1):
         obs, r, term, trunc, info = env.step(np.zeros(2, dtype=np.float32))
@@ -165,7 +173,7 @@ def test_fixed_horizon_terminates_at_the_last_step(env_id):
 
 @pytest.mark.parametrize("env_id", V1_IDS)
 def test_reward_terms_sum_to_the_reward_and_costs_are_consistent(env_id):
-    env = gym.make(env_id, episode_steps=12, hold_steps=3, **FAST)
+    env = make_retired(env_id, episode_steps=12, hold_steps=3, **FAST)
     env.reset(seed=2)
     rng = np.random.default_rng(0)
     total_cost = 0.0
@@ -230,7 +238,7 @@ def test_holding_just_above_the_actual_critical_speed_is_not_certified():
     """1.003 Lambda_c of the ACTUAL damping (g != 1): the window stays calm, the certificate refuses; at
     0.99 Lambda_c it certifies."""
     kw = {**NO_SHOCKS, "episode_steps": 80}
-    env = gym.make("gfb_env/RunUp-v1", **kw)
+    env = make_retired("gfb_env/RunUp-v1", **kw)
     info, amps, g, lam_c = _hold_at(env, 1.003)
     assert abs(math.log(g)) > 0.1  # a drawn gain far from 1: the nominal Lambda_c(D_cmd) would be wrong
     assert info["bearing_number"] == pytest.approx(1.003 * lam_c, rel=1e-9)
@@ -246,7 +254,7 @@ def test_holding_just_above_the_actual_critical_speed_is_not_certified():
 
 def test_a_whirl_in_the_window_is_not_certified():
     cert = StabilityCertificate(stable_amplitude=0.05, hold_steps=3)
-    env = gym.make("gfb_env/RunUp-v1").unwrapped
+    env = make_retired("gfb_env/RunUp-v1").unwrapped
     env.reset(seed=0)
     s = env._integ.state
     c = cert.judge([0.01, 0.06, 0.01], env.model, 0.5, 1.0, s)
@@ -257,7 +265,7 @@ def test_a_whirl_in_the_window_is_not_certified():
 
 
 def test_best_stable_operating_point_is_the_maximum_of_the_critical_curve():
-    env = gym.make("gfb_env/RunUpRandomized-v1").unwrapped
+    env = make_retired("gfb_env/RunUpRandomized-v1").unwrapped
     env.reset(seed=0, options={"clearance_m": 45e-6, "stiffness_factor": 1.2, "load_n": 18.0})
     lam, d = best_stable_operating_point(env.model, (0.03, 30.0), 0.6)
 
@@ -278,7 +286,7 @@ def test_best_stable_operating_point_is_the_maximum_of_the_critical_curve():
 
 
 def test_the_episode_best_point_respects_the_achievable_damping():
-    env = gym.make("gfb_env/RunUp-v1").unwrapped
+    env = make_retired("gfb_env/RunUp-v1").unwrapped
     env.reset(seed=0)
     bp = env.best_stable_operating_point()
     g = env.damping_gain
@@ -293,17 +301,17 @@ def test_the_objective_is_a_component_built_from_the_task_arguments():
     from gfb_env.envs.commanded import CommandedObjective
     from gfb_env.envs.rewards import CommandedSpeedReward
 
-    u = gym.make("gfb_env/RunUp-v1", episode_steps=40, reward={"speed_weight": 0.2}, **FAST).unwrapped
+    u = make_retired("gfb_env/RunUp-v1", episode_steps=40, reward={"speed_weight": 0.2}, **FAST).unwrapped
     obj = u.objective
     assert isinstance(obj, CommandedObjective) and obj.episode_steps == 40
     assert obj.reward == CommandedSpeedReward(speed_weight=0.2) and obj.costs == CostSpec()
     assert obj.certificate == StabilityCertificate(u.stable_amplitude, u.hold_steps)
     assert obj.target_tolerance == 0.02
-    w = gym.make("gfb_env/WhirlRecovery-v1", costs={"whirl_amplitude": 0.2}, **FAST).unwrapped
+    w = make_retired("gfb_env/WhirlRecovery-v1", costs={"whirl_amplitude": 0.2}, **FAST).unwrapped
     assert w.objective.costs == CostSpec(whirl_amplitude=0.2, episode_cost_limit=15.0)  # the task's 15 kept
-    assert gym.make("gfb_env/WhirlRecovery-v1", **FAST).unwrapped.objective.episode_steps == 200
+    assert make_retired("gfb_env/WhirlRecovery-v1", **FAST).unwrapped.objective.episode_steps == 200
     costs = CostSpec(film_thickness=0.2)
-    assert gym.make("gfb_env/RunUp-v1", costs=costs, **FAST).unwrapped.objective.costs is costs
+    assert make_retired("gfb_env/RunUp-v1", costs=costs, **FAST).unwrapped.objective.costs is costs
 
 
 def test_bad_objective_arguments_are_refused_naming_them():
@@ -319,19 +327,19 @@ def test_bad_objective_arguments_are_refused_naming_them():
         ({"command_fraction_range": (0.5, 0.4)}, "command_fraction_range"),
     ]:
         with pytest.raises(ValueError, match=match):
-            gym.make("gfb_env/RunUp-v1", **kw)
+            make_retired("gfb_env/RunUp-v1", **kw)
     with pytest.raises(ValueError, match="reference_fraction"):
-        gym.make("gfb_env/WhirlRecovery-v1", reference_fraction=1.0)
+        make_retired("gfb_env/WhirlRecovery-v1", reference_fraction=1.0)
     with pytest.raises(ValueError, match="command_range_rpm"):
-        gym.make("gfb_env/RunUpRandomized-v1", command_fraction_range=(0.9, 1.0))
+        make_retired("gfb_env/RunUpRandomized-v1", command_fraction_range=(0.9, 1.0))
     with pytest.raises(ValueError, match="command_range_rpm"):
-        gym.make("gfb_env/RunUpRandomized-v1", command_range_rpm=(10_000.0, 50_000.0))
+        make_retired("gfb_env/RunUpRandomized-v1", command_range_rpm=(10_000.0, 50_000.0))
 
 
 @pytest.mark.parametrize("env_id", V1_IDS)
 def test_same_seed_same_trajectory(env_id):
     def run():
-        env = gym.make(env_id, episode_steps=15, **FAST)
+        env = make_retired(env_id, episode_steps=15, **FAST)
         obs, _ = env.reset(seed=11)
         rng = np.random.default_rng(4)
         out = [obs]
@@ -356,8 +364,8 @@ def test_same_seed_same_trajectory(env_id):
 )
 def test_vector_env_is_sync_bit_for_bit_across_the_horizon(env_id):
     kw = {**FAST, "episode_steps": 3, "hold_steps": 2}
-    native = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **kw)
-    sync = gym.make_vec(
+    native = make_retired_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **kw)
+    sync = make_retired_vec(
         env_id,
         num_envs=2,
         vectorization_mode="sync",
@@ -379,7 +387,7 @@ def test_vector_env_is_sync_bit_for_bit_across_the_horizon(env_id):
 
 @pytest.mark.parametrize("env_id", V1_IDS)
 def test_random_actions_for_whole_episodes_never_give_nan(env_id):
-    env = gym.make(env_id)
+    env = make_retired(env_id)
     for seed in range(2):
         obs, _ = env.reset(seed=seed)
         env.action_space.seed(seed)
@@ -397,7 +405,7 @@ def test_the_oracle_succeeds_where_the_naive_ramp_does_not():
     from gfb_agents.learned.evaluate import run_episode
     from gfb_agents.oracles.commanded import CommandedOracle
 
-    env = gym.make("gfb_env/RunUp-v1", **NO_SHOCKS)
+    env = make_retired("gfb_env/RunUp-v1", **NO_SHOCKS)
     oracle, naive = CommandedOracle(env), make_naive(env)
     res = run_episode(env, oracle, seed=3)  # the evaluation's protocol: reset info, then predict
     assert res.success and res.steps == 250
@@ -413,7 +421,7 @@ def test_the_oracle_succeeds_where_the_naive_ramp_does_not():
 def test_the_oracle_recovers_from_the_whirl():
     from gfb_agents.oracles.commanded import CommandedOracle
 
-    env = gym.make("gfb_env/WhirlRecovery-v1", **NO_SHOCKS)
+    env = make_retired("gfb_env/WhirlRecovery-v1", **NO_SHOCKS)
     oracle = CommandedOracle(env)
     obs, info = env.reset(seed=0)
     oracle.reset()
@@ -434,7 +442,7 @@ def test_the_oracle_recovers_from_the_whirl():
 def test_a_failing_best_point_search_never_crashes_the_horizon(monkeypatch):
     """The horizon's lazy optimum is only needed when the command was not reached; if its search fails
     the step still completes (success then needs the command itself)."""
-    env = gym.make("gfb_env/RunUp-v1", episode_steps=12, hold_steps=2, **FAST, **NO_SHOCKS)
+    env = make_retired("gfb_env/RunUp-v1", episode_steps=12, hold_steps=2, **FAST, **NO_SHOCKS)
     u = env.unwrapped
 
     def boom(self):
@@ -451,7 +459,7 @@ def test_a_failing_best_point_search_never_crashes_the_horizon(monkeypatch):
 def test_randomized_success_below_the_command_is_decided_by_the_exact_best_speed():
     """A certified hold below the command succeeds iff its mean is >= 98 % of the drawn plant's exact
     best stable speed: held at 0.99 of it (success) and at 0.97 (not)."""
-    env = gym.make("gfb_env/RunUpRandomized-v1", **NO_SHOCKS)
+    env = make_retired("gfb_env/RunUpRandomized-v1", **NO_SHOCKS)
     u = env.unwrapped
     out = {}
     for frac in (0.99, 0.97):

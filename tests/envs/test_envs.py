@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
-from gfb_env.envs import ENV_IDS, V2_ENV_IDS, RunUpEnv, WhirlRecoveryEnv
+from gfb_env.envs import ENV_IDS, RunUpEnv, WhirlRecoveryEnv
 from gfb_env.envs.base import _whirl_amplitude
 
 # short control steps keep the tests fast; the physics is the default one
@@ -40,7 +40,7 @@ def _rollout(env: gym.Env, actions, seed: int | None):
 
 
 # ------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("env_id", (*ENV_IDS, *V2_ENV_IDS))
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_gymnasium_check_env(env_id):
     from gymnasium.utils.env_checker import check_env
 
@@ -49,7 +49,7 @@ def test_gymnasium_check_env(env_id):
     env.close()
 
 
-@pytest.mark.parametrize("env_id", (*ENV_IDS, *V2_ENV_IDS))
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_sb3_check_env(env_id):
     from stable_baselines3.common.env_checker import check_env
 
@@ -69,7 +69,7 @@ def test_registration_is_idempotent():
 
 @pytest.mark.parametrize("mode", ["sync", "async"])
 def test_make_vec(mode):
-    envs = gym.make_vec("gfb_env/RunUp-v1", num_envs=2, vectorization_mode=mode, **FAST)
+    envs = gym.make_vec("gfb_env/RunUp-v2", num_envs=2, vectorization_mode=mode, **FAST)
     obs, _ = envs.reset(seed=3)
     assert obs.shape == (2, *envs.single_observation_space.shape)
     for _ in range(3):
@@ -84,7 +84,7 @@ def test_sb3_subproc_vec_env():
 
     # "module:id" makes each (forkserver) worker import gfb_env.envs, which registers the ids
     venv = make_vec_env(
-        "gfb_env.envs:gfb_env/WhirlRecovery-v1", n_envs=2, seed=1, vec_env_cls=SubprocVecEnv, env_kwargs=FAST
+        "gfb_env.envs:gfb_env/WhirlRecovery-v2", n_envs=2, seed=1, vec_env_cls=SubprocVecEnv, env_kwargs=FAST
     )
     obs = venv.reset()
     for _ in range(3):
@@ -94,7 +94,7 @@ def test_sb3_subproc_vec_env():
 
 
 # ------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("env_id", (*ENV_IDS, *V2_ENV_IDS))
+@pytest.mark.parametrize("env_id", ENV_IDS)
 def test_seeded_determinism(env_id):
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1, 1, size=(5, 2)).astype(np.float32)
@@ -114,7 +114,7 @@ def test_seeded_determinism(env_id):
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_snapshot_restore_is_exact(env_id):
-    env = _make(env_id, **_disturbed(env_id), observation_noise=0.01).unwrapped
+    env = _make(env_id, **_disturbed(env_id), observation_noise=0.01, privileged_info=True).unwrapped
     env.reset(seed=2)
     env.step(np.array([1.0, 0.3], dtype=np.float32))
     snap = env.get_state()
@@ -126,7 +126,9 @@ def test_snapshot_restore_is_exact(env_id):
     second = [env.step(a) for a in actions]
     for (o1, r1, t1, u1, i1), (o2, r2, t2, u2, i2) in zip(first, second, strict=True):
         assert np.array_equal(o1, o2) and r1 == r2 and t1 == t2 and u1 == u2
-        assert i1["tau"] == i2["tau"] and i1["xi_um"] == i2["xi_um"]
+        # every info entry, the true state under info["privileged"] included
+        assert repr(sorted(i1.items())) == repr(sorted(i2.items()))
+        assert i1["privileged"]["tau"] == i2["privileged"]["tau"] and "xi_um" in i1["privileged"]
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -146,12 +148,12 @@ _action = st.tuples(st.one_of(st.floats(-1, 1), _extreme), st.one_of(st.floats(-
 
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
-    env_index=st.integers(0, len(ENV_IDS) + len(V2_ENV_IDS) - 1),
+    env_index=st.integers(0, len(ENV_IDS) - 1),
     actions=st.lists(_action, min_size=1, max_size=6),
     seed=st.integers(0, 2**16),
 )
 def test_random_and_extreme_actions(env_index, actions, seed):
-    env = _make((*ENV_IDS, *V2_ENV_IDS)[env_index], max_episode_steps=len(actions))
+    env = _make(ENV_IDS[env_index], max_episode_steps=len(actions))
     obs, info = env.reset(seed=seed)
     assert env.observation_space.contains(obs)
     ended = False
@@ -216,7 +218,7 @@ def test_invalid_arguments_raise_value_error_naming_the_field():
         with pytest.raises(ValueError, match=field):
             RunUpEnv(**kwargs)
     with pytest.raises(ValueError, match="clearance_range_m"):
-        gym.make("gfb_env/RunUpRandomized-v1", clearance_range_m=(1e-6, 2e-6))
+        gym.make("gfb_env/RunUpRandomized-v2", clearance_range_m=(1e-6, 2e-6))
 
 
 def test_whirl_recovery_starts_whirling():

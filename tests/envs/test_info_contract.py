@@ -1,6 +1,6 @@
-"""The information contract (issue 19 s.1): the privileged channel (``hidden_parameters()``,
-``privileged_info``) and the classification of every info key of every registered id
-(:mod:`gfb_env.envs.contract`)."""
+"""The information contract (issue 19 s.1) of the retired v1 ids, as a record (built by ``make_retired``): the
+privileged channel (``hidden_parameters()``, ``privileged_info``) and the classification of every v1 info key
+(:mod:`gfb_env.envs.contract`): what leaked.  The v2 ids' contract: tests/envs/test_v2_contract.py."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import record_short_episode
 
-from gfb_env.envs import ENV_IDS, V2_ENV_IDS
+from gfb_env.envs import ENV_IDS, RETIRED_V1_IDS, make_retired
 from gfb_env.envs.contract import (
     INFO_CONTRACT,
     InfoClass,
@@ -32,16 +32,17 @@ def _episode(env_id: str, seed: int, policy=None, **kw):
 
 @pytest.fixture(scope="module")
 def episodes():
-    return {env_id: _episode(env_id, 5) for env_id in ENV_IDS}
+    return {env_id: _episode(env_id, 5) for env_id in RETIRED_V1_IDS}
 
 
 def test_every_registered_id_has_a_contract():
-    assert set(INFO_CONTRACT) == set(ENV_IDS) | set(V2_ENV_IDS)  # v2: tests/envs/test_v2_contract.py
+    # the current ids, and the retired v1 ids for the record (v2: tests/envs/test_v2_contract.py)
+    assert set(INFO_CONTRACT) == set(RETIRED_V1_IDS) | set(ENV_IDS)
     with pytest.raises(ValueError, match="env_id"):
         classify("gfb_env/Nope-v9", "step")
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", RETIRED_V1_IDS)
 def test_every_info_key_is_classified_at_reset_and_over_a_whole_episode(env_id, episodes):
     infos = episodes[env_id][0]
     assert infos[-1]["termination_reason"] is not None  # the whole episode (horizon or earlier end)
@@ -60,7 +61,7 @@ def test_a_new_key_fails_until_classified():
 
 def test_the_v1_ids_leak_ground_truth():
     """The v1 info hands out g, the drawn bearing and the true state (the audit of issue 19)."""
-    for env_id in ENV_IDS:
+    for env_id in RETIRED_V1_IDS:
         leaks = set(leaked_ground_truth(env_id))
         assert {"damping_gain", "foil_damping", "xi_um", "whirl_amplitude", "reward_whirl"} <= leaks
         assert "probe_x_um" not in leaks and "speed_rpm" not in leaks
@@ -70,7 +71,7 @@ def test_the_v1_ids_leak_ground_truth():
     assert classify(RU, "bearing_number") is InfoClass.SENSOR  # the nominal bearing: the speed, scaled
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", RETIRED_V1_IDS)
 def test_no_sensor_or_public_value_equals_a_hidden_parameter(env_id, episodes):
     """Exact float equality of every SENSOR/PUBLIC info value against every hidden draw: none on v1
     (so the classification is consistent); the GROUND_TRUTH keys that do equal one are the leaks."""
@@ -88,7 +89,7 @@ def test_no_sensor_or_public_value_equals_a_hidden_parameter(env_id, episodes):
     assert leaking <= set(leaked_ground_truth(env_id))
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", RETIRED_V1_IDS)
 def test_hidden_parameters_hold_a_value_per_hidden_draw(env_id, episodes):
     infos, hidden = episodes[env_id][:2]
     hp = hidden[0]
@@ -119,6 +120,8 @@ def test_hidden_parameters_hold_a_value_per_hidden_draw(env_id, episodes):
 
 
 def test_hidden_parameters_same_seed_same_dict_other_seed_other():
+    """On the current (v2) ids: the privileged channel is the task's, not the interface's."""
+
     def first(env_id, seed):
         env = gym.make(env_id)
         env.reset(seed=seed)
@@ -129,13 +132,13 @@ def test_hidden_parameters_same_seed_same_dict_other_seed_other():
         assert a == b
         assert a["damping_gain"] != c["damping_gain"] and a["unbalance"] != c["unbalance"]
         assert a["sensors"]["probe_bias_um"] != c["sensors"]["probe_bias_um"] and a["task"] != c["task"]
-    assert first(RUR, 11)["bearing"] != first(RUR, 12)["bearing"]
+    assert first(ENV_IDS[1], 11)["bearing"] != first(ENV_IDS[1], 12)["bearing"]
 
 
 def test_the_shock_schedule_holds_every_shock_drawn_so_far():
     """A high shock rate: each step's shocks (info["shocks"], info["shock_peak_g"]) end the schedule,
     which only grows; a snapshot restores it."""
-    env = gym.make(RU, shock_arrivals={"rate_per_s": 300.0, "peak_g_range": (0.5, 1.0)})
+    env = make_retired(RU, shock_arrivals={"rate_per_s": 300.0, "peak_g_range": (0.5, 1.0)})
     u = env.unwrapped
     env.reset(seed=3)
     assert u.hidden_parameters()["shocks"] == []
@@ -158,10 +161,10 @@ def test_the_shock_schedule_holds_every_shock_drawn_so_far():
 @pytest.mark.parametrize("bad", [1, 0, "yes", None, 1.0])
 def test_privileged_info_must_be_a_bool(bad):
     with pytest.raises(ValueError, match="privileged_info"):
-        gym.make(RU, privileged_info=bad)
+        gym.make(ENV_IDS[0], privileged_info=bad)
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", RETIRED_V1_IDS)
 def test_privileged_info_adds_the_true_quantities_and_changes_nothing_else(env_id, episodes):
     off_infos, off_hidden, off_obs, off_rewards = episodes[env_id]
     on_infos, _, on_obs, on_rewards = _episode(env_id, 5, privileged_info=True)
@@ -185,7 +188,7 @@ def test_privileged_info_adds_the_true_quantities_and_changes_nothing_else(env_i
 
 
 def test_privileged_info_in_the_native_vector_env():
-    venv = gym.make_vec(RU, num_envs=2, privileged_info=True, **SHORT)
+    venv = gym.make_vec(ENV_IDS[0], num_envs=2, privileged_info=True, **SHORT)
     _, infos = venv.reset(seed=7)
     gains = infos["privileged"]["hidden_parameters"]["damping_gain"]
     assert [float(g) for g in gains] == [e.hidden_parameters()["damping_gain"] for e in venv.unwrapped.envs]

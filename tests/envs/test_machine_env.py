@@ -160,7 +160,7 @@ def test_sensors_add_their_errors_to_the_observation_only():
 
 
 def test_realistic_machine_survives_extreme_actions():
-    env = gym.make("gfb_env/WhirlRecovery-v1", max_episode_steps=6, **REALISTIC, **FAST)
+    env = gym.make("gfb_env/WhirlRecovery-v2", max_episode_steps=6, **REALISTIC, **FAST)
     for seed in range(3):
         obs, _ = env.reset(seed=seed)
         for a in ([np.nan, np.inf], [-1e30, 1e30], [1.0, -1.0], [0.0, 0.0]):

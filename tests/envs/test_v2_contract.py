@@ -12,7 +12,7 @@ import pytest
 from conftest import record_short_episode, same_value
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
-from gfb_env.envs import ENV_IDS, V2_ENV_IDS
+from gfb_env.envs import _V1_SPECS, ENV_IDS, RETIRED_V1_IDS, V2_ENV_IDS, make_retired
 from gfb_env.envs.certify import StabilityCertificate
 from gfb_env.envs.certify_v2 import AfterShockCertificate
 from gfb_env.envs.contract import InfoClass, classify, hidden_value_matches, unclassified_keys
@@ -36,13 +36,15 @@ def episodes():
 
 
 def test_the_v2_ids_are_registered_with_the_v1_tasks():
-    for v1, v2 in zip(ENV_IDS, V2_ENV_IDS, strict=True):
-        s1, s2 = gym.spec(v1), gym.spec(v2)
+    assert ENV_IDS == V2_ENV_IDS  # the current tasks
+    for v1, v2 in zip(RETIRED_V1_IDS, V2_ENV_IDS, strict=True):
+        s1, s2 = make_retired(v1).spec, gym.spec(v2)
+        assert v1 in _V1_SPECS
         assert v2 == v1.replace("-v1", "-v2") and s1.entry_point == s2.entry_point
         assert s1.max_episode_steps == s2.max_episode_steps
         assert s1.vector_entry_point == s2.vector_entry_point
         assert {k: v for k, v in s2.kwargs.items() if k != "interface"} == s1.kwargs
-        assert "interface" not in s1.kwargs and gym.make(v1).unwrapped.interface is None
+        assert "interface" not in s1.kwargs and make_retired(v1).unwrapped.interface is None
 
 
 @pytest.mark.parametrize("env_id", V2_ENV_IDS)
@@ -64,7 +66,7 @@ def test_every_info_key_is_sensor_public_or_final_verdict(env_id, episodes):
 
 @pytest.mark.parametrize("env_id", V2_ENV_IDS)
 def test_the_observation_is_v1s_then_the_monitor_then_the_task_entries(env_id, episodes):
-    v1 = gym.make(env_id.replace("-v2", "-v1")).unwrapped.observation_layout
+    v1 = make_retired(env_id.replace("-v2", "-v1")).unwrapped.observation_layout
     v2 = gym.make(env_id).unwrapped.observation_layout
     assert v2.names[:16] == v1.names[:16]
     assert v2.names[16:28] == MONITOR_ENTRIES and v2.names[28:] == v1.names[16:]
@@ -84,8 +86,8 @@ def test_v1s_entries_are_v1s_values(env_id):
     rng = np.random.default_rng(3)
     actions = rng.uniform(-1, 1, (6, 2)).astype(np.float32)
     out = {}
-    for v in ("-v1", "-v2"):
-        env = gym.make(env_id.replace("-v2", v))
+    for v, make in (("-v1", make_retired), ("-v2", gym.make)):
+        env = make(env_id.replace("-v2", v))
         o, _ = env.reset(seed=4)
         obs = [o] + [env.step(a)[0] for a in actions]
         out[v] = np.array(obs)
@@ -123,7 +125,7 @@ def test_the_monitor_entries_come_from_the_probe_samples(env_id):
 
 def test_raw_probe_samples_needs_v2_and_a_bool():
     with pytest.raises(ValueError, match="raw_probe_samples"):
-        gym.make(ENV_IDS[0], raw_probe_samples=True)
+        make_retired(RETIRED_V1_IDS[0], raw_probe_samples=True)
     with pytest.raises(ValueError, match="raw_probe_samples"):
         gym.make(RU2, raw_probe_samples=1)
 

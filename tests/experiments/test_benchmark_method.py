@@ -146,14 +146,14 @@ def test_statistics_refuse_bad_input_and_pass_nan_through():
 def test_every_task_has_one_naive_and_one_oracle_and_kinds_are_valid():
     from gfb_agents import ladder
 
-    assert ladder.V1_TASKS
-    for task in ladder.V1_TASKS:
+    assert ladder.V1_TASKS and ladder.V2_TASKS
+    for task in ladder.V2_TASKS + ladder.V1_TASKS:  # the current tasks, and the retired ones' record
         entries = ladder.ladder_for(task)
         assert ladder.naive_for(task).name == "naive" and ladder.oracle_for(task) is not None, task
         assert all(e.kind in ladder.KINDS for e in entries)
         kinds = [e.kind for e in entries]
         assert kinds == sorted(kinds, key=ladder.KINDS.index)  # ladder order
-        # the v1 rules of gfb_agents.rules
+        # the rules of gfb_agents.rules
         assert sum(k == "rule" for k in kinds) >= 2, task
 
 
@@ -185,18 +185,18 @@ def test_register_refuses_duplicates_and_bad_entries_and_scoped_undoes():
 def test_a_v1_reference_supersedes_the_builtin_on_its_tasks_only():
     from gfb_agents import ladder
 
-    assert ladder.oracle_for(ladder.V1_TASKS[0]).name == "oracle_v1"
+    assert ladder.oracle_for(ladder.V2_TASKS[0]).name == "oracle_v1"
     with ladder.scoped():
         ladder.register(
-            ladder.AgentEntry("my_oracle", "oracle", ladder.V1_TASKS[:1], ladder.make_commanded_oracle),
+            ladder.AgentEntry("my_oracle", "oracle", ladder.V2_TASKS[:1], ladder.make_commanded_oracle),
             supersede=True,
         )
-        assert ladder.oracle_for(ladder.V1_TASKS[0]).name == "my_oracle"
-        for t in ladder.V1_TASKS[1:]:
+        assert ladder.oracle_for(ladder.V2_TASKS[0]).name == "my_oracle"
+        for t in ladder.V2_TASKS[1:] + ladder.V1_TASKS:
             assert ladder.oracle_for(t).name == "oracle_v1"
         ladder.set_tasks("margin_search", [])
         assert "margin_search" not in ladder.registered()
-    assert ladder.oracle_for(ladder.V1_TASKS[0]).name == "oracle_v1"
+    assert ladder.oracle_for(ladder.V2_TASKS[0]).name == "oracle_v1"
     assert "margin_search" in ladder.registered()
 
 
@@ -207,7 +207,7 @@ def test_naive_ramp_reads_the_speed_command_where_the_task_has_one():
     from gfb_agents.nominal_map import NominalMap
     from gfb_agents.policy import ControlSpec
 
-    env = gym.make("gfb_env/RunUp-v1")
+    env = gym.make("gfb_env/RunUp-v2")
     nmap = NominalMap.from_env(env)
     spec = ControlSpec.from_env(env, nmap)
 
@@ -239,7 +239,7 @@ def test_naive_ramp_holds_below_lambda_c_of_damping_one():
     from gfb_agents import ladder
     from gfb_agents.nominal_map import NominalMap
 
-    env = gym.make("gfb_env/RunUp-v1")
+    env = gym.make("gfb_env/RunUp-v2")
     nmap = NominalMap.from_env(env)
     agent = ladder.make_naive(env)
     assert agent.kind == "scripted" and agent.damping == 1.0

@@ -13,6 +13,7 @@ import pytest
 
 from gfb_agents import ladder, seeds
 from gfb_agents.learned.evaluate import EpisodeResult
+from gfb_env.envs import make_env
 from gfb_experiments import benchmark_agents as bench
 from gfb_experiments.benchmark_stats import (
     _seeded_global_rng,
@@ -262,9 +263,8 @@ def test_the_chunk_cache_resumes_a_200_seed_run_after_an_interruption(tmp_path, 
 
 
 def test_the_paths_figure_draws_each_tasks_own_band(tmp_path, monkeypatch):
-    import gymnasium as gym
 
-    env = gym.make(TASK)
+    env = make_env(TASK)  # TASK is retired: the record path
     band = bench.plant_band(env)
     env.close()
     assert band.band_lower is not None and "31x7" in band.source  # the stored map of the task's grid

@@ -181,12 +181,12 @@ def test_bad_arguments_are_refused_in_one_line(tmp_path, capsys, args, word):
     assert not (tmp_path / "o").exists()  # refused before any work
 
 
-def test_the_rules_posterior_accessors_read_the_episode_memory():
+def test_the_rules_posterior_accessors_read_the_episode_memory():  # on the current task
     import gymnasium as gym
 
     from gfb_agents.ladder import build
 
-    env = gym.make("gfb_env/WhirlRecovery-v1")
+    env = gym.make("gfb_env/WhirlRecovery-v2")
     rule = build("recovery", env)
     assert rule.gain_posterior() is None and rule.bearing_estimate() is None  # before the first step
     obs, _ = env.reset(seed=5)

@@ -54,7 +54,7 @@ def test_nominal_map_missing_hysteresis_map_is_an_error_not_an_empty_fold(tmp_pa
 
     from gfb_agents.nominal_map import NominalMap
 
-    env = gym.make("gfb_env/RunUp-v1")
+    env = gym.make("gfb_env/RunUp-v2")
     nmap = NominalMap.from_env(env)  # the shipped map: it lacks K_W = 0.50, so the fold is unknown
     assert len(nmap.fold) == 0 and math.isnan(nmap.fold_at(2.0))
     with pytest.raises(FileNotFoundError, match="hysteresis"):

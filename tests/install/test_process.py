@@ -65,7 +65,7 @@ def test_subproc_vec_env_from_python_c(tmp_path):
         from gfb_agents.learned.train import make_vec_env_for
 
         t0 = time.perf_counter()
-        venv = make_vec_env_for("gfb_env/RunUp-v1", 2, seed=3, vec_env="subproc")
+        venv = make_vec_env_for("gfb_env/RunUp-v2", 2, seed=3, vec_env="subproc")
         obs = venv.reset()
         actions = np.stack([venv.action_space.sample() for _ in range(2)])
         obs2, rewards, dones, infos = venv.step(actions)
@@ -85,8 +85,8 @@ def test_subproc_vec_env_from_python_c(tmp_path):
 def test_importable_env_id():
     from gfb_agents.learned.train import importable_env_id
 
-    assert importable_env_id("gfb_env/RunUp-v1") == "gfb_env:gfb_env/RunUp-v1"
-    assert importable_env_id("gfb_env:gfb_env/RunUp-v1") == "gfb_env:gfb_env/RunUp-v1"
+    assert importable_env_id("gfb_env/RunUp-v2") == "gfb_env:gfb_env/RunUp-v2"
+    assert importable_env_id("gfb_env:gfb_env/RunUp-v2") == "gfb_env:gfb_env/RunUp-v2"
     assert importable_env_id("CartPole-v1") == "CartPole-v1"
 
 
@@ -104,7 +104,7 @@ def test_native_vector_env_compiles_from_a_cold_cache_and_then_loads_it(tmp_path
         import gfb_env.envs
         import gfb_env.integrator.batch as I
 
-        envs = gym.make_vec("gfb_env/RunUp-v1", num_envs=4, control_interval=20.0)
+        envs = gym.make_vec("gfb_env/RunUp-v2", num_envs=4, control_interval=20.0)
         obs, _ = envs.reset(seed=0)
         for _ in range(2):
             obs, *_ = envs.step(np.full((4, 2), 0.3, np.float32))

@@ -209,14 +209,13 @@ ENV_GOLDEN_STEPS = (0, 10, 20, 30, 40)
 def case_envs_v1() -> CaseResult:
     """40 random actions (seed 3) in each v1 task, single env and native vector env (3 envs, autoreset):
     observations, rewards, flags and every info entry (golden: observations at a few steps, every
-    reward, the flags and the integrator steps)."""
-    import gymnasium as gym
-
-    import gfb_env  # noqa: F401  (registers the tasks)
+    reward, the flags and the integrator steps).  The v1 ids are retired (issue 19): their envs are built
+    for the record by ``make_retired`` / ``make_retired_vec``, the very envs ``gymnasium.make`` gave."""
+    from gfb_env.envs.retired import RETIRED_V1_IDS, make_retired, make_retired_vec
 
     out = CaseResult()
-    for env_id in ("gfb_env/RunUp-v1", "gfb_env/RunUpRandomized-v1", "gfb_env/WhirlRecovery-v1"):
-        env = gym.make(env_id)
+    for env_id in RETIRED_V1_IDS:
+        env = make_retired(env_id)
         obs, info = env.reset(seed=3)
         env.action_space.seed(3)
         rows, flags, infos = [obs], [], [_info_digest(info)]
@@ -242,7 +241,7 @@ def case_envs_v1() -> CaseResult:
         out.exact[f"{env_id}.flags"] = [[bool(a), bool(b)] for a, b in flags]
         out.counts[f"{env_id}.integrator_steps"] = [int(v) for v in steps]
         env.close()
-        venv = gym.make_vec(env_id, num_envs=3)
+        venv = make_retired_vec(env_id, num_envs=3)
         obs, info = venv.reset(seed=5)
         venv.action_space.seed(5)
         rows, infos = [obs.ravel()], [repr(sorted((k, repr(v)) for k, v in info.items()))]

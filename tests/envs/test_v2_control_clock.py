@@ -17,28 +17,34 @@ from gfb_env.envs import NOMINAL_BEARING, MonitorInterface
 SEEDS = (0, 3)
 #: 60 tau of the nominal bearing (the documented v2 step)
 STEP_S = 60.0 * NOMINAL_BEARING.time_scale_s
-STEPS = 12
+DAMPING_STEPS, RAMP_STEPS = 3, 12
+STEPS = DAMPING_STEPS + RAMP_STEPS
 
 
 def _public_timing(seed: int) -> dict:
-    """Ramp up at the motor limit (a_speed = +1, a_damping = 0) from the start speed: the public speed
-    (info and observation), monitor_valid and the raw sample times of each step, and the drawn C."""
+    """At the start speed, a damping step as far as the actuator's range allows (its rate limit is per
+    second); then a ramp at the motor limit (a_speed = +1): the public speed (info and observation), the
+    indicated damping, monitor_valid and the raw sample times of each step, and the drawn C."""
     env = gym.make("gfb_env/RunUpRandomized-v2", raw_probe_samples=True, privileged_info=True)
     obs, info = env.reset(seed=seed)
     layout = env.unwrapped.observation_layout
+    away = -1.0 if obs[layout.damping] > 0 else 1.0  # the far end of the damping range
+    actions = [(0.0, away)] * DAMPING_STEPS + [(1.0, away)] * RAMP_STEPS
     out = {
         "c_um": info["privileged"]["hidden_parameters"]["bearing"]["clearance_um"],
         "speed_rpm": [info["speed_rpm"]],
         "speed_obs": [float(obs[layout.speed])],
+        "damping_obs": [float(obs[layout.damping])],
         "valid": [],
         "times": [],
         "time_s": [],
     }
-    for _ in range(STEPS):
-        obs, _, terminated, truncated, info = env.step(np.array([1.0, 0.0], dtype=np.float32))
+    for a in actions:
+        obs, _, terminated, truncated, info = env.step(np.array(a, dtype=np.float32))
         assert not (terminated or truncated)
         out["speed_rpm"].append(info["speed_rpm"])
         out["speed_obs"].append(float(obs[layout.speed]))
+        out["damping_obs"].append(float(obs[layout.damping]))
         out["valid"].append(float(obs[layout.index("monitor_valid")]))
         out["times"].append(info["probe_samples"]["time_s"].copy())
         out["time_s"].append(info["privileged"]["time_s"])
@@ -58,11 +64,23 @@ def test_the_seeds_draw_very_different_clearances(timings):
 
 def test_speed_change_per_step_does_not_depend_on_the_clearance(timings):
     a, b = timings
-    np.testing.assert_allclose(np.diff(a["speed_rpm"]), np.diff(b["speed_rpm"]), rtol=1e-6)
-    np.testing.assert_allclose(np.diff(a["speed_obs"]), np.diff(b["speed_obs"]), rtol=1e-6)
+    ramp = slice(DAMPING_STEPS, None)
+    np.testing.assert_allclose(np.diff(a["speed_rpm"])[ramp], np.diff(b["speed_rpm"])[ramp], rtol=1e-6)
+    np.testing.assert_allclose(np.diff(a["speed_obs"])[ramp], np.diff(b["speed_obs"])[ramp], rtol=1e-6)
     # the motor's limit times the step's seconds (to float32's resolution of the speed entry)
     motor_rpm_per_s = gym.make("gfb_env/RunUpRandomized-v2").unwrapped.max_acceleration_rpm_per_s
-    np.testing.assert_allclose(np.diff(a["speed_rpm"]), motor_rpm_per_s * STEP_S, atol=0.01)
+    np.testing.assert_allclose(np.diff(a["speed_rpm"])[ramp], motor_rpm_per_s * STEP_S, atol=0.01)
+    np.testing.assert_array_equal(np.diff(a["speed_rpm"])[:DAMPING_STEPS], 0.0)  # held
+
+
+def test_the_actuators_rate_limited_move_per_step_does_not_depend_on_the_clearance(timings):
+    a, b = timings
+    # from different starts toward the far end of the range: rate-limited, so the move is the limit
+    # times the step's seconds (the actuator's lag ran over the plant's 60 tau, which told C)
+    moves_a = np.abs(np.diff(a["damping_obs"])[:DAMPING_STEPS])
+    moves_b = np.abs(np.diff(b["damping_obs"])[:DAMPING_STEPS])
+    np.testing.assert_allclose(moves_a, moves_b, rtol=1e-5)
+    assert np.all(moves_a > 0.05)
 
 
 def test_monitor_valid_turns_on_at_the_same_step(timings):
@@ -70,7 +88,7 @@ def test_monitor_valid_turns_on_at_the_same_step(timings):
     np.testing.assert_array_equal(a["valid"], b["valid"])
     first = int(np.argmax(a["valid"] > 0.5))
     # 3.5 revolutions in 9.54 ms is 22 013 rpm: the start (20 600 rpm) is below, the ramp passes it
-    assert a["valid"][first] == 1.0 and 0 < first < STEPS - 1
+    assert a["valid"][first] == 1.0 and DAMPING_STEPS < first < STEPS - 1
     assert np.all(a["valid"][first:] == 1.0)
 
 

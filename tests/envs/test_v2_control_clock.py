@@ -37,6 +37,7 @@ def _public_timing(seed: int) -> dict:
         "damping_obs": [float(obs[layout.damping])],
         "valid": [],
         "times": [],
+        "angles": [],
         "time_s": [],
     }
     for a in actions:
@@ -47,6 +48,7 @@ def _public_timing(seed: int) -> dict:
         out["damping_obs"].append(float(obs[layout.damping]))
         out["valid"].append(float(obs[layout.index("monitor_valid")]))
         out["times"].append(info["probe_samples"]["time_s"].copy())
+        out["angles"].append(info["probe_samples"]["keyphasor_angle_rad"].copy())
         out["time_s"].append(info["privileged"]["time_s"])
     env.close()
     return {k: np.asarray(v) for k, v in out.items()}
@@ -98,6 +100,8 @@ def test_raw_sample_times_do_not_depend_on_the_clearance(timings):
     np.testing.assert_allclose(a["times"], b["times"], rtol=1e-12, atol=0.0)
     np.testing.assert_allclose(np.diff(a["times"], axis=1), STEP_S / 120.0, rtol=1e-9)
     np.testing.assert_allclose(a["times"][:, -1], STEP_S * np.arange(1, STEPS + 1), rtol=1e-12)
+    # and the key's angles: the same speed profile in rpm over the same seconds
+    np.testing.assert_allclose(a["angles"], b["angles"], rtol=1e-9, atol=1e-9)
 
 
 def test_a_step_lasts_the_stated_seconds(timings):

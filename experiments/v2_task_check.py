@@ -44,7 +44,7 @@ def _episode(env_id: str, seed: int, **kw: Any) -> dict[str, Any]:
     u = env.unwrapped
     ce = u.episode.command
     hold = u.hold_steps
-    t_end, step_s = u.bearing.seconds(u._integ.tau), u.bearing.seconds(u.control_interval)  # noqa: SLF001
+    t_end, step_s = u.bearing.seconds(u._integ.tau), u.control_step_s  # noqa: SLF001
     in_window = any(e.time_s > t_end - hold * step_s for e in u.episode.shock_schedule)
     out = {
         "seed": seed,

@@ -14,8 +14,8 @@ __all__ = ["DECAY_CALIBRATION", "GainPosterior"]
 
 
 #: calibration of the measured envelope decay (log per control step) against the linear rate
-#: ``60 sigma``: slope and offset of ``measured = a * 60 sigma + b`` and the scatter, fitted on training
-#: seeds (docs/agents.md)
+#: ``step_tau sigma`` (60 sigma on a 60-tau step): slope and offset of ``measured = a * step_tau sigma + b``
+#: and the scatter, fitted on training seeds (docs/agents.md)
 DECAY_CALIBRATION = {"a": 1.0, "b": 0.0, "sd": 0.15, "outlier": 0.1}
 
 
@@ -37,11 +37,15 @@ class GainPosterior:
         w = np.exp(self.log_w - self.log_w.max())
         return w / w.sum()
 
-    def add_decay(self, table: StabilityTable, lam: float, d_cmd: float, rate_per_step: float) -> None:
+    def add_decay(
+        self, table: StabilityTable, lam: float, d_cmd: float, rate_per_step: float, step_tau: float = 60.0
+    ) -> None:
         """A measured decay (log per control step) at ``Lambda`` with commanded damping ``d_cmd``:
-        Gaussian around the calibrated prediction, with an outlier floor (robust to a mis-detection)."""
+        Gaussian around the calibrated prediction, with an outlier floor (robust to a mis-detection).
+        ``step_tau``: one control step in tau of ``table``'s plant (the env's ``ControlClock``; 60, v1's step;
+        on a v2 drawn bearing ``60 T_nom / T``, the step being a fixed period in seconds)."""
         cal = DECAY_CALIBRATION
-        pred = cal["a"] * 60.0 * table.growth_rate(lam, self.gains * d_cmd) + cal["b"]
+        pred = cal["a"] * step_tau * table.growth_rate(lam, self.gains * d_cmd) + cal["b"]
         z = (rate_per_step - pred) / cal["sd"]
         lik = (1 - cal["outlier"]) * np.exp(-0.5 * z * z) / cal["sd"] + cal["outlier"] / 3.0
         self.log_w += np.log(lik)

@@ -101,7 +101,7 @@ class _OneEnvPolicy(PrivilegedPolicy):
         u = self.u
         bearing = u.hidden().bearing  # the actual bearing (privileged: its clearance is drawn)
         lam = bearing.bearing_number_at(u.observation_layout.speed_rpm(self._obs))
-        step = u.max_rate(bearing) * u.control_interval
+        step = u.max_rate(bearing) * u.step_tau  # the plant's tau per step (v2: a fixed period in s)
         return float(np.clip((setpoint_bearing_number - lam) / step, -1.0, 1.0))
 
 

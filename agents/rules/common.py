@@ -10,6 +10,7 @@ import numpy as np
 
 from gfb_agents.nominal_map import NominalMap
 from gfb_agents.policy import ControlSpec, ScriptedPolicy, TrackerMemory
+from gfb_env.params import BearingParameters
 
 __all__ = ["CommandSource", "time_left_fraction", "RuleMemory", "CommandedRule"]
 
@@ -61,6 +62,9 @@ class CommandedRule(ScriptedPolicy):
         self.hold_steps = int(u.hold_steps)
         self.nominal = u.nominal_bearing
         self.control_interval = float(u.control_interval)
+        #: the env's control clock (public configuration): the plant's tau per step of a bearing (v2: a
+        #: fixed period in seconds, so ``60 T_nom / T`` tau on a bearing of time scale T; v1: 60 tau)
+        self.control_clock = u.control_clock
         self.max_speed_rpm = float(u.speed_range_rpm[1])
         commanded = getattr(u, "commanded", None)  # the v1 objective's documented configuration
         self.episode_steps = int(commanded.episode_steps) if commanded is not None else 250
@@ -69,6 +73,10 @@ class CommandedRule(ScriptedPolicy):
 
     def _new_memory(self) -> RuleMemory:
         return RuleMemory(rate=self.spec.rpm_per_step)
+
+    def step_tau(self, bearing: BearingParameters) -> float:
+        """One control step in tau of a plant with ``bearing`` (the env's :class:`ControlClock`)."""
+        return self.control_clock.step_tau(bearing)
 
     def command_rpm(self, obs: np.ndarray, m: RuleMemory) -> float | None:
         if m.cmd_rpm is None:

@@ -51,6 +51,7 @@ class IdentifyingAgent(ScriptedPolicy):
         self.target_fraction = float(getattr(u, "target_fraction", 0.95))
         self.max_speed_rpm = float(u.speed_range_rpm[1])
         self.control_interval = float(u.control_interval)
+        self.control_clock = u.control_clock  # the plant's tau per step of a bearing (v2: fixed seconds)
         self.nominal = u.nominal_bearing
         self.last_estimate: BearingEstimate | None = None
 
@@ -73,7 +74,7 @@ class IdentifyingAgent(ScriptedPolicy):
         return (
             b.speed_rpm_at(lam),
             row["d_opt"],
-            self.spec.actions.rpm_per_step(b, self.control_interval),
+            self.spec.actions.rpm_per_step(b, self.control_clock.step_tau(b)),
         )
 
     def _act(self, obs, rpm, m: IdentifyingMemory):

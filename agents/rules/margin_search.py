@@ -313,7 +313,7 @@ class MarginSearchAgent(CommandedRule):
             est = identify_bearing(self.identifier, m.obs)
             m.estimate = est
             m.table, m.bearing, m.model = self._table_for(est)
-            m.rate = self.spec.actions.rpm_per_step(m.bearing, self.control_interval)
+            m.rate = self.spec.actions.rpm_per_step(m.bearing, self.step_tau(m.bearing))
         else:
             m.table = self._nominal_table()
             m.model = self._tables["nominal_model"]
@@ -404,7 +404,8 @@ class MarginSearchAgent(CommandedRule):
                 pos_scale,
                 vel_scale,
             ).reshape(len(post.gains), len(ds), -1)
-            phi0 = self.control_interval * lam  # omega_0 x control step = Lambda x control interval
+            # the 1x phase advance of a step: omega x step seconds = Lambda x the plant's tau per step
+            phi0 = self.step_tau(b) * lam
             phi = unb.best_phase_step(phi0, 0.06 if self.randomized else 0.0, 241)
             ll = unb.log_likelihood(phi, vec, 0.1 if self.randomized else 0.03)
             # tempered: on RunUp-v1 seeds 24-39 the posterior mean of ln g was off by 1.21 posterior sd
@@ -438,7 +439,7 @@ class MarginSearchAgent(CommandedRule):
             est = refine_bearing(self.identifier, pts, m.estimate)
             m.estimate_initial, m.estimate = m.estimate, est
             m.table, m.bearing, m.model = self._table_for(est)
-            m.rate = self.spec.actions.rpm_per_step(m.bearing, self.control_interval)
+            m.rate = self.spec.actions.rpm_per_step(m.bearing, self.step_tau(m.bearing))
             m.rel_sd, m.refined, m.dirty = self.rel_sd_refined, True, True
 
     # -- one handler per mode -------------------------------------------------------------------
@@ -473,7 +474,7 @@ class MarginSearchAgent(CommandedRule):
         for rate, lam_ev, d_ev, _n in m.meter.update(
             self.spec.observations.envelope(obs), self._lam(m, rpm), m.d_prev or m.d_cmd
         ):
-            m.post.add_decay(m.table, lam_ev, d_ev, rate)
+            m.post.add_decay(m.table, lam_ev, d_ev, rate, self.step_tau(m.bearing))
         act = self._probe_step(obs, rpm, m)
         if act is not None:
             m.d_prev = act[1]
@@ -523,7 +524,7 @@ class MarginSearchAgent(CommandedRule):
         # the damping in force over the last step: the previous command (None before the first)
         growing_event = False
         for rate, lam_ev, d_ev, _n in meter.update(env_, lam, m.d_prev or m.d_cmd):
-            m.post.add_decay(m.table, lam_ev, d_ev, rate)
+            m.post.add_decay(m.table, lam_ev, d_ev, rate, self.step_tau(m.bearing))
             m.dirty = True
             # a shock's transient that grew instead of decaying: the plant is unstable here (seen on
             # RunUp-v1 seed 31: +0.27 per step, then touchdown 5 steps later while the guard waited)

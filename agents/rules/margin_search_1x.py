@@ -2,8 +2,10 @@
 observation's 1x vectors (issue 19 s.3: "the 1x vector versus damping").
 
 The same probe as ``margin_search`` (hold the start speed, step the commanded damping through 0.3, 1.5 and
-7.0, ten settled steps each), but each settled step also gives the vibration monitor's 1x vector of both
-probes (``x_1x_pp``, ``x_1x_cos``, ... read by name from ``env.unwrapped.observation_layout``), averaged
+7.0, ten settled steps each; below the speed at which a control step's record holds the monitor's minimum
+revolutions, as RunUpRandomized-v2's 20 600 rpm start, the probe runs 3 % above that speed instead), but
+each settled step also gives the vibration monitor's 1x vector of both probes (``x_1x_pp``, ``x_1x_cos``,
+... read by name from ``env.unwrapped.observation_layout``), averaged
 over the steps of each damping, and the gain follows from the ratios of those vectors between the dampings
 against the public model's (:mod:`gfb_agents.estimation.one_x`: the unbalance and the probes' bias drop
 out).  The 1x likelihood is added to ``margin_search``'s posterior (which keeps its own unbalance probe on
@@ -27,7 +29,7 @@ import numpy as np
 
 from gfb_agents.estimation.gain import GainPosterior
 from gfb_agents.estimation.one_x import MonitorPhasors, OneXProbe, monitor_1x_sd, probe_responses
-from gfb_agents.rules.margin_search import MarginSearchAgent, MarginSearchMemory
+from gfb_agents.rules.margin_search import MarginSearchAgent, MarginSearchMemory, Mode
 from gfb_env.equilibrium import find_equilibrium
 
 __all__ = ["MarginSearch1xMemory", "MarginSearch1xAgent"]
@@ -86,6 +88,14 @@ class MarginSearch1xAgent(MarginSearchAgent):
         )
         #: the latest probe's evidence (for inspection): gains, 1x and v1 log-likelihoods
         self.last_probe: dict | None = None
+        # the slowest speed at which the monitor's record of one control step holds its minimum
+        # revolutions (public: the monitor's configuration and the step's seconds), with 3 % to spare:
+        # RunUpRandomized-v2 starts at 20 600 rpm, below the 22 010 rpm of 3.5 revolutions in 9.54 ms,
+        # so a probe at the start speed would get no 1x vector at all
+        monitor = getattr(getattr(u, "interface", None), "monitor", None)
+        self.probe_floor_rpm = (
+            1.03 * monitor.min_revolutions * 60.0 / float(u.control_step_s) if monitor is not None else 0.0
+        )
 
     def _new_memory(self) -> MarginSearch1xMemory:
         base = super()._new_memory()
@@ -93,6 +103,11 @@ class MarginSearch1xAgent(MarginSearchAgent):
         m.post = GainPosterior(self.gain_range, n=self.n_gains)
         m.onex = OneXProbe(self.one_x_sd)
         return m
+
+    def _init_plant(self, m: MarginSearch1xMemory, obs: np.ndarray, rpm: float) -> None:
+        super()._init_plant(m, obs, rpm)
+        if m.mode is Mode.PROBE and rpm < self.probe_floor_rpm:
+            m.probe_rpm = self.probe_floor_rpm  # the probe where the monitor reads a 1x vector
 
     def _probe_sample(self, m: MarginSearch1xMemory, d: float, obs: np.ndarray) -> None:
         super()._probe_sample(m, d, obs)

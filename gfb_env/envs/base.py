@@ -5,7 +5,9 @@ The plant is the viscoelastic GFB rotor model of Leister, Baum & Seemann (paper 
 (:class:`~gfb_env.integrator.TrapezoidalIntegrator`).  One control step spans ``control_interval``
 units of tau (several whirl periods ``~4 pi / Lambda``) and many integrator steps; over a control step
 the bearing number Lambda and the foil damping D_W ramp linearly from their current values to the
-commanded ones.
+commanded ones.  Whose tau: the env's :class:`~gfb_env.envs.config.ControlClock` says (v1: the episode's
+plant; the v2 interface: the nominal bearing's, a fixed period in seconds, so on a drawn bearing the
+plant's tau per step :attr:`GFBEnv.step_tau` varies instead).
 
 One control step is four stages (:meth:`GFBEnv.step`): *command* (sanitise the action; the motor
 turns the speed action into Lambda at the step's end, the foil-damping actuator turns the damping
@@ -48,7 +50,7 @@ from gymnasium import spaces
 
 from gfb_env.envs.certify import BestStablePoint, best_stable_operating_point
 from gfb_env.envs.commanded import CertifiedPlant, CommandedEpisode, CommandedObjective, SpeedCommand
-from gfb_env.envs.config import DEFAULT_GRID, EnvConfig
+from gfb_env.envs.config import DEFAULT_GRID, ControlClock, EnvConfig
 from gfb_env.envs.episode import Episode, EpisodeSetup, History, StepOutcome, TerminationReason
 from gfb_env.envs.privileged import DrawnBearing, HiddenParameters, ResidualUnbalance, SensorDraws
 from gfb_env.envs.render import EpisodeRenderer
@@ -233,8 +235,12 @@ class GFBEnv(gym.Env):
             extra_high=tuple(float(x) for x in extra_hi),
             extra_names=extra_names,
         )
-        # record the trajectory ~120 times per control step (>= 30 samples per whirl period)
-        self.record_interval = cfg.control_interval / 120.0
+        #: the control step's duration (tau of the plant, seconds): the v2 interface's clock runs in seconds
+        #: (``control_interval`` tau of the nominal bearing), v1's in tau of the episode's plant
+        clock = "plant" if self.interface is None else self.interface.control_clock
+        self.control_clock = ControlClock(
+            cfg.control_interval, cfg.nominal_bearing if clock == "seconds" else None
+        )
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         low, high = self.observation_layout.bounds()
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
@@ -269,6 +275,32 @@ class GFBEnv(gym.Env):
     damping_actuator: FoilDampingActuator = _FromConfig()  # type: ignore[assignment]
     proximity_probes: ProximityProbes = _FromConfig()  # type: ignore[assignment]
     pressure_taps: PressureTaps = _FromConfig()  # type: ignore[assignment]
+
+    # the control step of the episode (before the first reset: of the nominal bearing)
+    @property
+    def _clock_bearing(self) -> BearingParameters:
+        return self._ep.bearing if self._ep is not None else self.nominal_bearing
+
+    @property
+    def step_tau(self) -> float:
+        """One control step in tau of the episode's plant (:meth:`ControlClock.step_tau`; the v2 clock
+        keeps the step's seconds fixed, so on a drawn bearing this is ``60 T_nom / T`` tau)."""
+        return self.control_clock.step_tau(self._clock_bearing)
+
+    @property
+    def control_step_s(self) -> float:
+        """One control step in seconds (v2: ``control_interval x T_nom``, the same on every episode)."""
+        return self.control_clock.step_s(self._clock_bearing)
+
+    @property
+    def record_interval(self) -> float:
+        """The record grid's spacing, tau of the episode's plant (120 samples per control step)."""
+        return self.control_clock.record_interval(self._clock_bearing)
+
+    @property
+    def record_interval_s(self) -> float:
+        """The probes' sampling period, seconds (120 samples per control step)."""
+        return self.control_clock.record_interval_s(self._clock_bearing)
 
     # ------------------------------------------------------------------------------------------
     # task hooks
@@ -578,7 +610,7 @@ class GFBEnv(gym.Env):
         failure: Exception | None = None
         try:
             call = integ.prepare(
-                integ.tau + self.control_interval, bearing_number, foil_damping, self.record_interval,
+                integ.tau + self.step_tau, bearing_number, foil_damping, self.record_interval,
                 self._probe_idx, DEFAULT_MAX_STEPS,
             )  # fmt: skip
         except NUMERICAL_FAILURES as exc:
@@ -641,10 +673,10 @@ class GFBEnv(gym.Env):
         ep = self._ep
         b = ep.bearing
         lam1 = self.motor.bearing_number_at_step_end(
-            self._integ.bearing_number, a[0], b, self.control_interval, self.bearing_number_limits(b)
+            self._integ.bearing_number, a[0], b, self.step_tau, self.bearing_number_limits(b)
         )
         commanded = self.actions.damping_from_action(a[1])
-        ep.actuator = self.damping_actuator.step(ep.actuator, commanded, b.seconds(self.control_interval))
+        ep.actuator = self.damping_actuator.step(ep.actuator, commanded, self.control_step_s)
         return lam1, ep.actuator.foil_damping
 
     # ---- plant --------------------------------------------------------------------------------
@@ -716,7 +748,7 @@ class GFBEnv(gym.Env):
         draw without shock arrivals), handed to the integrator as half-sine pulses."""
         integ, ep, b = self._integ, self._ep, self._ep.bearing
         t0 = b.seconds(integ.tau)
-        events = self.config.shock_arrivals.draw(self.np_random, t0, t0 + b.seconds(self.control_interval))
+        events = self.config.shock_arrivals.draw(self.np_random, t0, t0 + self.control_step_s)
         for e in events:
             shock = HalfSineShock.from_physical(b, e.time_s, e.peak_g, e.duration_ms, e.direction_deg)
             # tau -> s -> tau may round below the current time by an ulp
@@ -772,8 +804,8 @@ class GFBEnv(gym.Env):
             self.best_stable_operating_point if known else None,
             shocks=ep.shock_schedule,
             time_s=b.seconds(self._integ.tau),
-            step_s=b.seconds(self.control_interval),
-            step_tau=self.control_interval,
+            step_s=self.control_step_s,
+            step_tau=self.step_tau,
         )
 
     # ---- emit ---------------------------------------------------------------------------------
@@ -843,7 +875,7 @@ class GFBEnv(gym.Env):
                 self.np_random,
                 np.asarray(xs) * c_um,
                 np.asarray(es) * c_um,
-                ep.bearing.seconds(self.record_interval),
+                self.record_interval_s,
                 ep.probe_bias_um,
             )
             self._apply_probe_errors(obs, err)

@@ -29,7 +29,7 @@ from gfb_env.machine._checks import component
 from gfb_env.model import Grid
 from gfb_env.params import BearingParameters
 
-__all__ = ["EnvConfig", "DEFAULT_GRID", "CONTROL_INTERVAL_RANGE"]
+__all__ = ["EnvConfig", "DEFAULT_GRID", "CONTROL_INTERVAL_RANGE", "CONTROL_CLOCKS", "ControlClock"]
 
 #: Default training grid, chosen by the measured accuracy/speed trade-off in ``docs/envs.md``
 #: (``experiments/env_grid_tradeoff.py``): Lambda_c within 1 % of the paper grid 79 x 7.
@@ -39,6 +39,54 @@ DEFAULT_GRID = "31x7"
 #: twentieth of a whirl period and the envelope says nothing; above 1000 tau (0.16 s, ~40 whirl
 #: periods) one step costs up to ~30 ms in a whirl and a controller cannot react to a growing orbit.
 CONTROL_INTERVAL_RANGE = (1.0, 1000.0)
+
+#: What ``control_interval`` counts (:attr:`~gfb_env.envs.interface_v2.MonitorInterface.control_clock`):
+#: ``"seconds"``, tau of the task's *nominal* bearing, i.e. a fixed period in seconds (a real machine's
+#: controller runs at a fixed period: the v2 ids, 60 tau = 9.54 ms), or ``"plant"``, tau of the episode's
+#: own plant (v1: a step's seconds scale with the plant's T, so on a drawn bearing with the hidden C).
+CONTROL_CLOCKS = ("seconds", "plant")
+
+
+@dataclass(frozen=True)
+class ControlClock:
+    """The duration of one control step, in the plant's tau and in seconds.
+
+    Attributes:
+        control_interval: the configured step (:attr:`EnvConfig.control_interval`), tau of ``reference``.
+        reference: the bearing whose time scale ``control_interval`` counts in (``"seconds"`` clock: the
+            nominal bearing, so a step lasts ``control_interval x T_nom`` seconds whatever the plant);
+            None (``"plant"`` clock, v1): the episode's own plant (``control_interval x T`` seconds).
+
+    Everything a task defines per control step follows from :meth:`step_tau` and :meth:`step_s`: the
+    integration span and the record grid (:attr:`SAMPLES_PER_STEP` samples), the motor's ramp and the
+    actuator's response over a step, the window in which base shocks arrive, the certificate's window.
+    """
+
+    control_interval: float
+    reference: BearingParameters | None = None
+
+    #: the probes' samples recorded per control step (>= 30 per whirl period at 60 tau)
+    SAMPLES_PER_STEP = 120
+
+    def step_tau(self, bearing: BearingParameters) -> float:
+        """One control step in tau of the plant ``bearing``."""
+        if self.reference is None:
+            return self.control_interval
+        # the ratio is exactly 1.0 for the reference bearing itself: its step is control_interval
+        return self.control_interval * (self.reference.time_scale_s / bearing.time_scale_s)
+
+    def step_s(self, bearing: BearingParameters) -> float:
+        """One control step in seconds on the plant ``bearing`` (the same for every plant with a
+        reference)."""
+        return (self.reference or bearing).seconds(self.control_interval)
+
+    def record_interval(self, bearing: BearingParameters) -> float:
+        """The record grid's spacing, tau of the plant ``bearing`` (:attr:`SAMPLES_PER_STEP` per step)."""
+        return self.step_tau(bearing) / self.SAMPLES_PER_STEP
+
+    def record_interval_s(self, bearing: BearingParameters) -> float:
+        """The record grid's spacing in seconds (the probes' sampling period)."""
+        return (self.reference or bearing).seconds(self.record_interval(self.reference or bearing))
 
 
 def _is_number(v: Any) -> bool:

@@ -59,7 +59,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from gfb_env.envs.certify_v2 import AfterShockCertificate
-from gfb_env.envs.config import check_positive
+from gfb_env.envs.config import CONTROL_CLOCKS, check_positive
 from gfb_env.envs.episode import TerminationReason
 from gfb_env.envs.monitor_reward import (
     MonitorCosts,
@@ -141,10 +141,19 @@ class MonitorInterface:
     Attributes:
         monitor: the vibration monitor (:class:`~gfb_env.machine.VibrationMonitor`, its defaults).
         alarm_direct_pp: the cost's alarm level of the direct pk-pk, units of C_nom (0.30).
+        control_clock: what the env's ``control_interval`` counts (:data:`~gfb_env.envs.config.
+            CONTROL_CLOCKS`): ``"seconds"`` (default) tau of the task's nominal bearing, so a control step
+            is a fixed period, 60 tau = 9.54 ms, whatever bearing was drawn (a real controller's clock);
+            ``"plant"``: tau of the episode's plant, v1's clock.  On a drawn bearing the plant's clock
+            makes a step last ``60 T`` seconds with ``T ~ 1 / C^2``, so the speed change per step at a known
+            speed action (the motor ramps in rpm/s), the probe samples' times and the speed at which the
+            monitor's record first holds 3.5 revolutions all tell the hidden clearance.  With the nominal
+            bearing (RunUp-v2, WhirlRecovery-v2) the two clocks are the same step, bit for bit.
     """
 
     monitor: VibrationMonitor = field(default_factory=VibrationMonitor)
     alarm_direct_pp: float = 0.30
+    control_clock: str = "seconds"
 
     #: the interface's observation entries (they follow the pressure taps)
     observation_names: ClassVar[tuple[str, ...]] = MONITOR_ENTRIES
@@ -153,6 +162,8 @@ class MonitorInterface:
         if not isinstance(self.monitor, VibrationMonitor):
             raise ValueError(f"monitor must be a VibrationMonitor, got {self.monitor!r}")
         object.__setattr__(self, "alarm_direct_pp", check_positive("alarm_direct_pp", self.alarm_direct_pp))
+        if self.control_clock not in CONTROL_CLOCKS:
+            raise ValueError(f"control_clock must be one of {CONTROL_CLOCKS}, got {self.control_clock!r}")
 
     def observation_bounds(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
         return _LOW, _HIGH
@@ -194,7 +205,7 @@ class MonitorInterface:
         xs_um, es_um = np.asarray(xs) * c_um, np.asarray(es) * c_um
         n = len(xs_um)
         noise = probes.draw_noise(env.np_random, n)  # the draw of measurement_errors
-        err = probes.errors_of_noise(noise, xs_um, es_um, b.seconds(env.record_interval), ep.probe_bias_um)
+        err = probes.errors_of_noise(noise, xs_um, es_um, env.record_interval_s, ep.probe_bias_um)
         env._apply_probe_errors(obs, err)  # noqa: SLF001
         x, y = probes.read_um(xi * c_um, eta * c_um, ep.probe_bias_um)
         if noise is not None:

@@ -287,6 +287,6 @@ class RunUpEnv(GFBEnv):
         """A simple expert: ramp at ``ramp`` of the motor limit toward the command with the optimum
         damping command of the nominal stability map (used by the benchmark and the tests)."""
         lam = self._integ.bearing_number
-        step = self.max_rate() * self.control_interval
+        step = self.max_rate() * self.step_tau
         a0 = float(np.clip((self.episode.task.target_bearing_number - lam) / step, -ramp, ramp))
         return np.array([a0, self.action_from_damping(self._optimum_damping())], dtype=np.float32)

@@ -10,6 +10,44 @@ trapezoidal rule's local error is O(h^3), hence the exponent -1/3.
 :class:`StepSizeController` holds the constants (part of
 :class:`~gfb_env.integrator.IntegratorOptions`); the compiled loop reads them from its options group
 (:class:`~gfb_env.integrator.arguments.LoopOptions`) through the two functions below.
+
+**The step limit at a settled operating point** (:class:`WhirlGrowthControl`, opt-in).  Near an
+equilibrium the error test above lets the step grow without bound: the local error of a deviation ``d``
+of the least damped (Hopf, half-frequency whirl) mode, ``|d| (h omega)^3 / 12`` with ``omega ~ Lambda / 2``,
+is below ``atol`` for any useful h once ``|d|`` is small.  But the trapezoidal rule grows that mode
+at ``sigma / (1 + (h omega)^2 / 4)`` instead of ``sigma`` (the derivative of ``log R(z)``,
+``R = (1 + z/2) / (1 - z/2)``, at ``z = i h omega``): the growth rate is damped, never its sign.  A
+whirl that grows at sigma ~ 0.004 from a small deviation therefore grows too slowly with large steps;
+the absolute error test cannot see it, because the error is relative to a deviation far below
+``atol``.  ``max_step = 2`` (``h omega <= 0.6`` at ``Lambda = 0.6``, the growth rate within 9 %) is
+what protects it today, and it pins the step near every equilibrium: 30 steps per 60-tau control step
+where 2 would do.  Measured on RunUp-v2 with a balanced rotor, full-speed ramp into the whirl:
+touchdown at control step 78 with ``max_step`` 2 and with the tight reference (rtol = atol = 1e-5),
+at step 120 with ``max_step`` 30.
+
+Two designs were candidates. (a) The local error measured relative to the deviation from the current
+equilibrium: this bounds ``(h omega)^3 / 12`` at every amplitude, so it pins the step near *every*
+equilibrium whose least damped mode oscillates (``h omega ~ (12 rtol)^(1/3)``: h ~ 0.5 at rtol 3e-4,
+smaller than today's cap) and gains nothing where the gain is wanted; with an absolute floor it returns to
+the absolute test below the floor and the growth from a small deviation is lost again. (b) A cap from the
+least damped mode's growth rate: only a *growing* (or barely decaying) mode needs its growth resolved, a
+decaying mode's error decays with it, and the rest of the solution is held to ``atol`` by the error test.
+This is (b), with the growth rate measured, not computed (an eigenvalue solve costs ~10 ms against a ~0.5
+ms control step): at a held operating point (Lambda and D_W within ``operating_point_tolerance`` of their
+values when the window started) the integrator measures the rotor's rate of motion ``m = |(xi', eta',
+xi'', eta'')|`` (for a deviation ``d`` near the equilibrium ``k(s) = J d``: m is the deviation seen
+through J, 0 at the equilibrium) at the end of each call. The operating point becomes *settled* when m
+decayed at ``decay_rate`` or faster over a window of at least ``min_window`` (several whirl periods: the
+average removes the phase of an elliptic orbit), measured under ``max_step``, so the measured rate is the
+mode's to 9 %. A settled call takes ``settled_max_step``; under it the numerical decay is slower (the
+factor above), so from then on each call is only asked not to grow: if m grew over a call (and is above
+``rest_motion``, the rounding level of k below which m is noise), the window restarts under ``max_step``.
+Because the trapezoidal rule keeps the sign of every mode's growth at any step, a mode that grows under
+the relaxed limit still grows, m grows, and the next call is capped again. Any change of Lambda or D_W
+beyond the tolerance restarts the window (a ramp moves the equilibrium, a damping change moves Lambda_c:
+both can turn a decaying mode into a growing one), so a ramp into the whirl is stepped exactly as without
+the option. The unbalance forcing keeps m up (its 1x orbit does not decay) and is capped by
+``steps_per_revolution`` anyway; base shocks land on their pulse ends at any limit.
 """
 
 from __future__ import annotations
@@ -20,7 +58,7 @@ from dataclasses import dataclass, fields
 
 from numba import njit
 
-__all__ = ["StepSizeController"]
+__all__ = ["StepSizeController", "WhirlGrowthControl"]
 
 
 @dataclass(frozen=True)
@@ -59,6 +97,67 @@ class StepSizeController:
             raise ValueError(f"controller.max_factor must be > 1, got {self.max_factor!r}")
         if not self.error_exponent < 0.0:
             raise ValueError(f"controller.error_exponent must be < 0, got {self.error_exponent!r}")
+
+
+@dataclass(frozen=True)
+class WhirlGrowthControl:
+    """The step limit at a settled operating point (opt-in; see the module docstring for the rule).
+
+    Attributes:
+        settled_max_step: the step limit in tau while the operating point is held and the rotor's
+            motion measured decaying, > 0 (the error test still applies).
+        decay_rate: the least decay rate per tau of the rotor's rate of motion, measured under
+            ``max_step`` over the window, that settles the operating point, > 0.
+        min_window: the shortest measurement window in tau, > 0.
+        rest_motion: below this rate of motion (clearances per tau) a settled call's growth is not a
+            restart (the rotor is at rest: m stops decaying at the rounding level of k, ~1e-15), > 0.
+        operating_point_tolerance: Lambda and D_W count as held while within this relative distance of
+            their values at the window's start, > 0 (the damping actuator approaches its command
+            geometrically, never exactly).
+    """
+
+    settled_max_step: float = 30.0
+    decay_rate: float = 0.003
+    min_window: float = 100.0
+    rest_motion: float = 1e-10
+    operating_point_tolerance: float = 1e-2
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and v > 0):
+                raise ValueError(f"whirl_growth_control.{f.name} must be a finite positive number, got {v!r}")
+            object.__setattr__(self, f.name, float(v))
+
+    def _same_point(self, window: tuple, operating_point: tuple) -> bool:
+        if not window:
+            return False
+        tol = self.operating_point_tolerance
+        lam, dw = operating_point
+        return abs(lam - window[0]) <= tol * abs(window[0]) and abs(dw - window[1]) <= tol * abs(window[1])
+
+    def window_after(self, window: tuple, tau: float, motion: float, operating_point: tuple) -> tuple:
+        """The measurement window after a call that ended at ``tau`` with the rotor's rate of motion
+        ``motion`` and ``operating_point`` = (Lambda, D_W).  A window is ``(Lambda, D_W, anchor tau,
+        anchor motion, tau, motion, settled)`` (Lambda, D_W: at its anchor) or ``()``.  It restarts
+        (unsettled) when the operating point left the anchor's by more than the tolerance or when a
+        settled call's motion grew; it becomes settled when, over at least ``min_window``, the motion
+        decayed at ``decay_rate`` or faster."""
+        restart = (*operating_point, tau, motion, tau, motion, False)
+        if not self._same_point(window, operating_point):
+            return restart
+        lam, dw, t0, m0, tp, mp, settled = window
+        if settled:
+            if motion > mp and motion >= self.rest_motion:
+                return restart
+            return (lam, dw, t0, m0, tau, motion, True)
+        tiny = 1e-300
+        decayed = math.log(max(motion, tiny) / max(m0, tiny)) <= -self.decay_rate * (tau - t0)
+        return (lam, dw, t0, m0, tau, motion, bool(tau - t0 >= self.min_window and decayed))
+
+    def settled(self, window: tuple, operating_point: tuple) -> bool:
+        """Whether a call that ends at ``operating_point`` = (Lambda, D_W) may take ``settled_max_step``."""
+        return self._same_point(window, operating_point) and window[6]
 
 
 # ------------------------------------------------------------------------------------------------

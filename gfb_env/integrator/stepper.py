@@ -179,6 +179,12 @@ class TrapezoidalIntegrator:
             raise ValueError(f"options must be an IntegratorOptions, got {type(options).__name__}")
         self._options = options
         self._loop_options = LoopOptions.head_of(options)  # every call appends its max_steps
+        # the step limit at a settled operating point (opt-in, controller.WhirlGrowthControl)
+        self._growth = options.whirl_growth_control
+        if self._growth is not None:
+            head = list(self._loop_options)
+            head[LoopOptions._fields.index("max_step")] = self._growth.settled_max_step
+            self._settled_loop_options = tuple(head)
 
     @property
     def rotation_angle(self) -> float:
@@ -394,7 +400,13 @@ class TrapezoidalIntegrator:
             rec_buf[0, -1] = self.model.min_film_thickness(st.s)
             first = 1
             rec_next += rec_dt
-        options = LoopOptions(*self._loop_options, int(max_steps))
+        head = self._loop_options
+        if self._growth is not None:
+            if self._growth.settled(st.growth_window, (lam1, dw1)):
+                head = self._settled_loop_options
+            elif st.step > self.options.max_step:  # back from a settled limit: the proposal too
+                st = self._stepper = dataclasses.replace(st, step=self.options.max_step)
+        options = LoopOptions(*head, int(max_steps))
         span = float(tau_end) - t0
         forcing, rate = self._forcing_of_call(st, span, lam0, lam1)
         return PreparedCall(
@@ -436,6 +448,13 @@ class TrapezoidalIntegrator:
         rb = rec_buf[:nrec]
         # theta' = Lambda is linear in time over the call: theta advances by the exact trapezoid
         angle = st.rotation_angle + (t - t0) * 0.5 * (lam0 + lam_t)
+        window = ()
+        if self._growth is not None:
+            # the rotor's rate of motion at the end: (xi', eta', xi'', eta'') = k(s) of the rotor rows
+            r0 = self.model.layout.rotor_offset
+            fr = st.f[r0 : r0 + 4]
+            motion = math.sqrt(float(fr @ fr))
+            window = self._growth.window_after(st.growth_window, t, motion, (lam_t, dw_t))
         self._stepper = new = st.advanced(
             clock,
             bearing_number=lam_t,
@@ -445,6 +464,7 @@ class TrapezoidalIntegrator:
             rotation_angle=math.fmod(angle, 2.0 * math.pi) if span > 0 else st.rotation_angle,
             rotation_acceleration=call.rate,
             shocks=tuple(q for q in st.shocks if q.end_tau > t) if st.shocks else (),
+            growth_window=window,
         )
         # one copy of the samples, column by column (each column contiguous; the probes a view of it)
         cols = rb.T.copy()

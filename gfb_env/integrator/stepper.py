@@ -16,6 +16,7 @@ from gfb_env import _kernels as K
 from gfb_env import forcing as F
 from gfb_env.forcing import HalfSineShock, Unbalance
 from gfb_env.integrator.arguments import Factorization, Forcing, Jacobian, LoopOptions, Recording
+from gfb_env.integrator.controller import WHIRL_FREQUENCY_RATIO
 from gfb_env.integrator.options import IntegratorOptions
 from gfb_env.integrator.results import (
     _EPSMAX,
@@ -450,10 +451,14 @@ class TrapezoidalIntegrator:
         angle = st.rotation_angle + (t - t0) * 0.5 * (lam0 + lam_t)
         window = ()
         if self._growth is not None:
-            # the rotor's rate of motion at the end: (xi', eta', xi'', eta'') = k(s) of the rotor rows
+            # the rotor's rate of motion at the end from (xi', eta', xi'', eta'') = k(s) of the rotor
+            # rows: |v|^2 + |a|^2 / omega^2 with the whirl's frequency omega = 0.4 Lambda is the same at
+            # every phase of a harmonic whirl (v = -A omega sin, a = -A omega^2 cos), so call ends at
+            # different phases of a decaying orbit do not read as growth
             r0 = self.model.layout.rotor_offset
             fr = st.f[r0 : r0 + 4]
-            motion = math.sqrt(float(fr @ fr))
+            w2 = (WHIRL_FREQUENCY_RATIO * max(lam_t, 1e-3)) ** 2
+            motion = math.sqrt(float(fr[0] ** 2 + fr[1] ** 2 + (fr[2] ** 2 + fr[3] ** 2) / w2))
             window = self._growth.window_after(st.growth_window, t, motion, (lam_t, dw_t))
         self._stepper = new = st.advanced(
             clock,

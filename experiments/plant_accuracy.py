@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from gfb_env.integrator import IntegratorOptions
 from gfb_env.scripting import OneLineParser, check_output_dir, write_json
 
 __all__ = ["REFERENCE_OPTIONS", "TASKS", "POLICIES", "compare_task", "main"]
@@ -120,10 +121,12 @@ def _episode(env, seed: int, actions: Sequence | None = None, policy=None,
 
 def compare_task(env_id: str, seeds: Sequence[int], policies: Sequence[str], variant_options: dict,
                  env_kwargs: dict, max_steps: int | None = None,
-                 plant_kwargs: dict | None = None) -> dict[str, Any]:  # fmt: skip
-    """The contract's numbers of one task (module docstring); ``plant_kwargs`` go to both sides."""
+                 plant_kwargs: dict | None = None,
+                 reference_options: dict | None = None) -> dict[str, Any]:  # fmt: skip
+    """The contract's numbers of one task (module docstring); ``plant_kwargs`` go to both sides,
+    ``reference_options`` over :data:`REFERENCE_OPTIONS`."""
     both = dict(plant_kwargs or {})
-    ref_env = _make(env_id, REFERENCE_OPTIONS, both)
+    ref_env = _make(env_id, {**REFERENCE_OPTIONS, **(reference_options or {})}, both)
     var_env = _make(env_id, variant_options, {**both, **env_kwargs})
     quiet_env = _make(env_id, variant_options, {**both, **env_kwargs}, quiet=True)
     names = None
@@ -248,6 +251,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         default="{}",
         help="JSON dict: gym.make kwargs of both sides (e.g. a balanced rotor)",
     )
+    p.add_argument(
+        "--reference-options",
+        type=str,
+        default="{}",
+        help="JSON dict over the reference's options (e.g. max_step: the default 2 also caps the reference "
+        "on an unforced plant)",
+    )
     p.add_argument("--tasks", type=str, default=",".join(TASKS))
     p.add_argument("--seeds", type=str, default="0,1,2,3", help="DEV seeds in [0, 9999]")
     p.add_argument("--policies", type=str, default=",".join(POLICIES))
@@ -259,6 +269,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         options = _json_dict("--integrator-options")(args.integrator_options)
         env_kwargs = _json_dict("--env-kwargs")(args.env_kwargs)
         plant_kwargs = _json_dict("--plant-kwargs")(args.plant_kwargs)
+        reference_options = _json_dict("--reference-options")(args.reference_options)
+        IntegratorOptions.from_mapping({**REFERENCE_OPTIONS, **reference_options})
         tasks = _names(TASKS, "--tasks")(args.tasks)
         policies = _names(POLICIES, "--policies")(args.policies)
         seeds = _seeds(args.seeds)
@@ -266,8 +278,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise ValueError(f"--max-steps must be >= 1, got {args.max_steps}")
         if not args.name or any(c in args.name for c in "/\\"):
             raise ValueError(f"--name must be a plain file name, got {args.name!r}")
-        from gfb_env.integrator import IntegratorOptions
-
         IntegratorOptions.from_mapping(options)  # a bad option fails here, before any episode
         _make(tasks[0], options, {**plant_kwargs, **env_kwargs}).close()  # and a bad env keyword
         out = check_output_dir(str(args.out), "--out", (f"{args.name}.json", f"{args.name}.csv"))
@@ -276,7 +286,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     results = []
     for env_id in tasks:
-        r = compare_task(env_id, seeds, policies, options, env_kwargs, args.max_steps, plant_kwargs)
+        r = compare_task(
+            env_id, seeds, policies, options, env_kwargs, args.max_steps, plant_kwargs, reference_options
+        )
         results.append(r)
         print(
             f"{env_id}: worst {r['worst_ratio_to_noise']:.3f} noise ({r['worst_entry']}; at touchdown "
@@ -293,7 +305,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "integrator_options": options,
         "env_kwargs": env_kwargs,
         "plant_kwargs": plant_kwargs,
-        "reference_options": REFERENCE_OPTIONS,
+        "reference_options": {**REFERENCE_OPTIONS, **reference_options},
         "seeds": seeds,
         "policies": policies,
         "max_steps": args.max_steps,

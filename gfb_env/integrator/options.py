@@ -170,6 +170,10 @@ _FIELDS = frozenset(f.name for f in dataclasses.fields(IntegratorOptions))
 
 #: The integrator options of the benchmark tasks (issue 20 item 1: the lead puts them into the v2 task
 #: specs as ``integrator_options``): the defaults with the step limit at a settled operating point
-#: (:class:`WhirlGrowthControl`'s defaults).  Accuracy against the tight reference:
-#: ``python -m gfb_experiments.plant_accuracy`` (results/plant_accuracy/).
+#: (:class:`WhirlGrowthControl`'s defaults).  With the unbalance stepped (today's v2 plant) the 1x orbit
+#: never settles and every v2 result is the default's (plant_accuracy, 2 seeds x 3 policies x 3 tasks:
+#: identical).  On the unforced plant (a balanced rotor, the stand-in for the analytic 1x response of
+#: item 2): RunUp-v2 held at its start 30.0 -> 8.4 integrator steps per control step, whirl unchanged;
+#: against the tight reference (4 seeds x hold/naive/random) the episode-entries beyond 1/3 of the noise
+#: are 56/57/183 of 360 with the defaults and 56/58/183 with these (results/plant_accuracy/README.md).
 BENCHMARK_INTEGRATOR_OPTIONS: dict[str, Any] = {"whirl_growth_control": {}}

@@ -107,3 +107,28 @@ def test_a_growing_whirl_grows_as_in_the_tight_reference(model):
     assert a_ref > 3 * amplitude(ref[:3])  # it does grow
     assert abs(a_opt / a_ref - 1) < 0.05
     assert abs(a_raised / a_ref - 1) > 0.05  # the test can fail: raising the cap alone does
+
+
+def test_the_env_option_settles_alike_in_the_single_and_the_native_vector_env():
+    """gym.make(..., integrator_options=BENCHMARK_INTEGRATOR_OPTIONS) on an unforced (balanced) RunUp-v2
+    held at its start: the vector env's batch call and the single env give the same observations bit
+    for bit, and both settle (30 integrator steps per control step with the defaults)."""
+    import gymnasium as gym
+
+    import gfb_env.envs  # noqa: F401  (registers the ids)
+
+    kw = {"integrator_options": BENCHMARK_INTEGRATOR_OPTIONS, "rotor_balance": {"grade_range_mm_s": [0, 0]}}
+    vec = gym.make_vec("gfb_env/RunUp-v2", num_envs=2, **kw)
+    singles = [gym.make("gfb_env/RunUp-v2", **kw) for _ in range(2)]
+    obs_v, _ = vec.reset(seed=[5, 6])
+    for e, s in zip(singles, (5, 6), strict=True):
+        e.reset(seed=s)
+    hold = np.zeros((2, 2), dtype=np.float32)  # speed held, D_W command 1 (the action's log-scale centre)
+    for _ in range(25):
+        obs_v, *_ = vec.step(hold)
+        for i, e in enumerate(singles):
+            assert np.array_equal(obs_v[i], e.step(hold[i])[0])
+    for e in singles:
+        integ = e.unwrapped._integ  # noqa: SLF001 - the plant's work counter
+        assert integ.statistics.steps < 25 * 20  # 30 per control step without the option
+    vec.close()

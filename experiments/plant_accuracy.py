@@ -18,7 +18,7 @@ the common steps but a touchdown's last observation, divided by that noise (the 
 apart from it the difference of the observation at a touchdown (read at the event, which each side puts
 at its own time inside the control step); per episode
 the final ``termination_reason``, ``is_success``, ``certified`` on both sides, the plant's Lambda_c
-(``hidden_parameters()['critical_bearing_number']`` where the task publishes it), the CPU time per control
+(the env's task constants ``lambda_c_dmin``, ``lambda_c_dmax``, ``lambda_best``), the CPU time per control
 step (``time.process_time``) and the integrator steps per control step on both sides.
 
 Writes ``<name>.json`` (everything) and ``<name>.csv`` (one row per task and entry) into ``--out``;
@@ -74,12 +74,15 @@ def _policy(name: str, env, seed: int):
     return lambda obs: (rng.uniform(space.low, space.high).astype(space.dtype), None)
 
 
-def _critical(env) -> float | None:
-    try:
-        v = env.unwrapped.hidden_parameters().get("critical_bearing_number")
-    except Exception:  # noqa: BLE001 - a task without the entry reports None
+def _critical(env) -> dict[str, float] | None:
+    """Lambda_c at the least and the largest damping and the best speed from the env's task constants
+    (``env.unwrapped.constants``; on RunUpRandomized-v2 the nominal bearing's: the drawn plant's Lambda_c
+    is not published.  Lambda_c is the model's, which neither the integrator options nor the stepping
+    of the forcing change; the comparison guards env keywords that would)."""
+    c = getattr(env.unwrapped, "constants", None)
+    if not isinstance(c, dict):
         return None
-    return None if v is None else float(v)
+    return {k: float(c[k]) for k in ("lambda_c_dmin", "lambda_c_dmax", "lambda_best") if k in c}
 
 
 def _episode(env, seed: int, actions: Sequence | None = None, policy=None,

@@ -59,8 +59,8 @@ file with compiled code goes into its ``COMPILED_SOURCES``.
 
 from gfb_env.equilibrium import EquilibriumError, find_equilibrium  # re-exported (moved there)
 from gfb_env.integrator.batch import BatchAdvance
-from gfb_env.integrator.controller import StepSizeController
-from gfb_env.integrator.options import STEPS_PER_REVOLUTION, IntegratorOptions
+from gfb_env.integrator.controller import StepSizeController, WhirlGrowthControl
+from gfb_env.integrator.options import BENCHMARK_INTEGRATOR_OPTIONS, STEPS_PER_REVOLUTION, IntegratorOptions
 from gfb_env.integrator.results import (
     AdvanceResult,
     IntegrationError,
@@ -73,6 +73,7 @@ from gfb_env.integrator.state import StepperState
 from gfb_env.integrator.stepper import DEFAULT_MAX_STEPS, PreparedCall, TrapezoidalIntegrator
 
 __all__ = [
+    "BENCHMARK_INTEGRATOR_OPTIONS",
     "DEFAULT_MAX_STEPS",
     "STEPS_PER_REVOLUTION",
     "AdvanceResult",
@@ -88,5 +89,6 @@ __all__ = [
     "TouchdownEvent",
     "Trajectory",
     "TrapezoidalIntegrator",
+    "WhirlGrowthControl",
     "find_equilibrium",
 ]

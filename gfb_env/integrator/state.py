@@ -45,6 +45,7 @@ class StepperState:
     rotation_acceleration: float = 0.0  # theta'' = dLambda/dtau that f's unbalance term was taken at
     unbalance: Unbalance | None = None  # the rotor's unbalance (f includes its forcing)
     shocks: tuple[HalfSineShock, ...] = ()  # base shocks not yet over at tau
+    growth_window: tuple = ()  # WhirlGrowthControl's measurement window (options.py; () when off)
 
     ARRAYS = ("s", "f", "fprev", "sprev", "sprev2")
 
@@ -133,6 +134,7 @@ class StepperState:
         rotation_angle: float,
         rotation_acceleration: float,
         shocks: tuple[HalfSineShock, ...],
+        growth_window: tuple = (),
     ) -> StepperState:
         """The state after a compiled call: the same (advanced in place) arrays, the loop's ``clock``
         and the rest as given (one constructor call: two ``dataclasses.replace`` cost ~10 us)."""
@@ -146,7 +148,7 @@ class StepperState:
             history=int(history), bearing_number=bearing_number, foil_damping=foil_damping,
             statistics=self.statistics.plus(counts), last_record_tau=last_record_tau,
             rotation_angle=rotation_angle, rotation_acceleration=rotation_acceleration,
-            unbalance=self.unbalance, shocks=shocks,
+            unbalance=self.unbalance, shocks=shocks, growth_window=growth_window,
         )  # fmt: skip
         return new
 
@@ -174,4 +176,5 @@ class StepperState:
         kw["shocks"] = tuple(
             q if isinstance(q, HalfSineShock) else HalfSineShock(**q) for q in kw.get("shocks", ())
         )
+        kw["growth_window"] = tuple(kw.get("growth_window", ()))
         return cls(**kw)

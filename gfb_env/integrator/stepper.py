@@ -16,6 +16,7 @@ from gfb_env import _kernels as K
 from gfb_env import forcing as F
 from gfb_env.forcing import HalfSineShock, Unbalance
 from gfb_env.integrator.arguments import Factorization, Forcing, Jacobian, LoopOptions, Recording
+from gfb_env.integrator.controller import WHIRL_FREQUENCY_RATIO
 from gfb_env.integrator.options import IntegratorOptions
 from gfb_env.integrator.results import (
     _EPSMAX,
@@ -179,6 +180,12 @@ class TrapezoidalIntegrator:
             raise ValueError(f"options must be an IntegratorOptions, got {type(options).__name__}")
         self._options = options
         self._loop_options = LoopOptions.head_of(options)  # every call appends its max_steps
+        # the step limit at a settled operating point (opt-in, controller.WhirlGrowthControl)
+        self._growth = options.whirl_growth_control
+        if self._growth is not None:
+            head = list(self._loop_options)
+            head[LoopOptions._fields.index("max_step")] = self._growth.settled_max_step
+            self._settled_loop_options = tuple(head)
 
     @property
     def rotation_angle(self) -> float:
@@ -394,7 +401,13 @@ class TrapezoidalIntegrator:
             rec_buf[0, -1] = self.model.min_film_thickness(st.s)
             first = 1
             rec_next += rec_dt
-        options = LoopOptions(*self._loop_options, int(max_steps))
+        head = self._loop_options
+        if self._growth is not None:
+            if self._growth.settled(st.growth_window, (lam1, dw1)):
+                head = self._settled_loop_options
+            elif st.step > self.options.max_step:  # back from a settled limit: the proposal too
+                st = self._stepper = dataclasses.replace(st, step=self.options.max_step)
+        options = LoopOptions(*head, int(max_steps))
         span = float(tau_end) - t0
         forcing, rate = self._forcing_of_call(st, span, lam0, lam1)
         return PreparedCall(
@@ -436,6 +449,17 @@ class TrapezoidalIntegrator:
         rb = rec_buf[:nrec]
         # theta' = Lambda is linear in time over the call: theta advances by the exact trapezoid
         angle = st.rotation_angle + (t - t0) * 0.5 * (lam0 + lam_t)
+        window = ()
+        if self._growth is not None:
+            # the rotor's rate of motion at the end from (xi', eta', xi'', eta'') = k(s) of the rotor
+            # rows: |v|^2 + |a|^2 / omega^2 with the whirl's frequency omega = 0.4 Lambda is the same at
+            # every phase of a harmonic whirl (v = -A omega sin, a = -A omega^2 cos), so call ends at
+            # different phases of a decaying orbit do not read as growth
+            r0 = self.model.layout.rotor_offset
+            fr = st.f[r0 : r0 + 4]
+            w2 = (WHIRL_FREQUENCY_RATIO * max(lam_t, 1e-3)) ** 2
+            motion = math.sqrt(float(fr[0] ** 2 + fr[1] ** 2 + (fr[2] ** 2 + fr[3] ** 2) / w2))
+            window = self._growth.window_after(st.growth_window, t, motion, (lam_t, dw_t))
         self._stepper = new = st.advanced(
             clock,
             bearing_number=lam_t,
@@ -445,6 +469,7 @@ class TrapezoidalIntegrator:
             rotation_angle=math.fmod(angle, 2.0 * math.pi) if span > 0 else st.rotation_angle,
             rotation_acceleration=call.rate,
             shocks=tuple(q for q in st.shocks if q.end_tau > t) if st.shocks else (),
+            growth_window=window,
         )
         # one copy of the samples, column by column (each column contiguous; the probes a view of it)
         cols = rb.T.copy()

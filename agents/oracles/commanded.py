@@ -17,6 +17,13 @@ Its plan:
   whirl cycle dies once the speed falls below the fold; the oracle sees the true orbit), then return at
   the motor limit to ``min(Lambda_cmd, (1 - margin) lambda_best)`` and hold.
 
+Causal under friction-regime changes of ``g`` (``damping_regime_changes``,
+:class:`~gfb_env.machine.DampingRegimeChanges`): before every action it reads the *current* ``g``
+(``env.unwrapped.damping_gain``, privileged) and, when it changed since the plan, makes the plan again
+for the new plant (the damping ``D_opt / g`` and the setpoint; WhirlRecovery's deceleration phase goes
+on where it was).  It never knows a change before the step after it happened (the changes are drawn
+step by step, like the shocks).
+
 ``margin`` (and ``collapse_amplitude``) are tuned on the training seeds 0-99 only (``docs/envs.md``).
 
 The naive baseline (0 on that scale) is :class:`gfb_agents.ladder.NaiveRampAgent` (``naive``), the same
@@ -126,16 +133,23 @@ class CommandedOracle(_OneEnvPolicy):
         self.whirl_start = hasattr(self.u, "whirl_bearing_number")
 
     def _plan(self) -> None:
+        self._plan_plant()
+        self.recovering = self.whirl_start
+
+    def _plan_plant(self) -> None:
+        """The damping command and the setpoint for the plant as it is now (its current ``g``)."""
         u = self.u
+        self.planned_gain = u.damping_gain
         best = u.best_stable_operating_point()
         cmd = u.speed_command
         self.setpoint = min(cmd.bearing_number, (1.0 - self.margin) * best.bearing_number)
         self.damping_action = u.action_from_damping(best.commanded_damping)
-        self.recovering = self.whirl_start
 
     def _act(self, obs: np.ndarray) -> np.ndarray:
         if not self._started:
             self._begin(obs)
+        elif self.u.damping_gain != self.planned_gain:  # a friction-regime change: re-plan
+            self._plan_plant()
         self._obs = obs
         if self.recovering:
             first = obs[-1] == 1.0  # time_left = steps_left / episode_steps: no step taken yet

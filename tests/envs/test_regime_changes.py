@@ -12,7 +12,7 @@ import pytest
 from conftest import record_short_episode
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
-from gfb_agents.oracles.commanded import CommandedOracle
+from gfb_agents.oracles.commanded import CommandedOracle, DelayedGainOracle
 from gfb_env.envs.config import EnvConfig
 from gfb_env.envs.contract import hidden_value_matches, unclassified_keys
 from gfb_env.machine import DampingActuatorState, DampingRegimeChanges, FoilDampingActuator
@@ -210,3 +210,28 @@ def test_the_native_vector_env_draws_the_changes_as_single_envs():
     assert list(gains) == [e.unwrapped.damping_gain for e in singles]
     assert any(e.unwrapped.hidden_parameters()["damping_regime_changes"]["changes"] for e in singles)
     vec.close()
+
+
+def test_the_delayed_oracle_commands_for_the_gain_of_d_steps_ago():
+    env = gym.make(WR2, damping_regime_changes=BUSY)
+    u = env.unwrapped
+    pol = DelayedGainOracle(env, 3)
+    assert pol.name == "oracle_delay3"
+    with pytest.raises(ValueError, match="delay_steps"):
+        DelayedGainOracle(env, -1)
+    obs, info = env.reset(seed=11)
+    pol.reset()
+    pol.observe_reset_info(info)
+    gains, lagged = [], 0
+    for k in range(12):
+        gains.append(u.damping_gain)
+        a, _ = pol.predict(obs)
+        known = gains[max(0, k - 3)]
+        d_opt = u.best_stable_operating_point().foil_damping
+        assert a[1] == pytest.approx(u.action_from_damping(d_opt / known), abs=1e-6)
+        lagged += known != gains[-1]
+        obs, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            break
+    assert lagged >= 2  # it did command for an old g while the plant had another
+    env.close()

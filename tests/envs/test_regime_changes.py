@@ -235,3 +235,30 @@ def test_the_delayed_oracle_commands_for_the_gain_of_d_steps_ago():
             break
     assert lagged >= 2  # it did command for an old g while the plant had another
     env.close()
+
+
+def test_the_headroom_script_stays_on_dev_seeds_and_pairs_the_seeds():
+    from gfb_experiments import regime_change_headroom as rch
+
+    with pytest.raises(SystemExit) as e:
+        rch.main(["--rate", "1", "--seeds", "10", "--seed-offset", "9995"])
+    assert e.value.code == 2
+    rng = np.random.default_rng(0)
+    seeds = list(range(20))
+    ret = {"naive": rng.normal(0, 1, 20), "hold": rng.normal(-1, 1, 20), "rule": rng.normal(5, 1, 20)}
+    ret["oracle_v1"] = ret["rule"] + 5.0
+    rec = {
+        "episodes": {
+            n: [
+                {"seed": s, "return": float(r[s]), "success": False, "touchdown": False, "changes": 1}
+                for s in seeds
+            ]
+            for n, r in ret.items()
+        }
+    }
+    st = rch.statistics(rec, seeds, reps=200)
+    assert st["best_rule"] == "rule" and st["reference"]["mean"]["reference"] == "naive"
+    gap = np.mean(ret["oracle_v1"]) - np.mean(ret["naive"])
+    # a constant per-seed difference: the paired CI is a point
+    assert st["headroom"]["mean"] == pytest.approx(5.0 / gap)
+    assert st["headroom"]["mean_low"] == pytest.approx(5.0 / gap)

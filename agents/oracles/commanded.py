@@ -17,6 +17,13 @@ Its plan:
   whirl cycle dies once the speed falls below the fold; the oracle sees the true orbit), then return at
   the motor limit to ``min(Lambda_cmd, (1 - margin) lambda_best)`` and hold.
 
+Causal under friction-regime changes of ``g`` (``damping_regime_changes``,
+:class:`~gfb_env.machine.DampingRegimeChanges`): before every action it reads the *current* ``g``
+(``env.unwrapped.damping_gain``, privileged) and, when it changed since the plan, makes the plan again
+for the new plant (the damping ``D_opt / g`` and the setpoint; WhirlRecovery's deceleration phase goes
+on where it was).  It never knows a change before the step after it happened (the changes are drawn
+step by step, like the shocks).
+
 ``margin`` (and ``collapse_amplitude``) are tuned on the training seeds 0-99 only (``docs/envs.md``).
 
 The naive baseline (0 on that scale) is :class:`gfb_agents.ladder.NaiveRampAgent` (``naive``), the same
@@ -35,7 +42,7 @@ import numpy as np
 
 from gfb_agents.policy import PrivilegedPolicy
 
-__all__ = ["CommandedOracle", "ORACLE_MARGIN", "ORACLE_COLLAPSE_AMPLITUDE"]
+__all__ = ["CommandedOracle", "DelayedGainOracle", "ORACLE_MARGIN", "ORACLE_COLLAPSE_AMPLITUDE"]
 
 #: the oracle's relative margin below lambda_best (tuned on training seeds 0-99 of the v1 ids, now retired and
 #: kept for the record; ``docs/envs.md``)
@@ -127,16 +134,23 @@ class CommandedOracle(_OneEnvPolicy):
         self.whirl_start = hasattr(self.u, "whirl_bearing_number")
 
     def _plan(self) -> None:
+        self._plan_plant()
+        self.recovering = self.whirl_start
+
+    def _plan_plant(self) -> None:
+        """The damping command and the setpoint for the plant as it is now (its current ``g``)."""
         u = self.u
+        self.planned_gain = u.damping_gain
         best = u.best_stable_operating_point()
         cmd = u.speed_command
         self.setpoint = min(cmd.bearing_number, (1.0 - self.margin) * best.bearing_number)
         self.damping_action = u.action_from_damping(best.commanded_damping)
-        self.recovering = self.whirl_start
 
     def _act(self, obs: np.ndarray) -> np.ndarray:
         if not self._started:
             self._begin(obs)
+        elif self.u.damping_gain != self.planned_gain:  # a friction-regime change: re-plan
+            self._plan_plant()
         self._obs = obs
         if self.recovering:
             first = obs[-1] == 1.0  # time_left = steps_left / episode_steps: no step taken yet
@@ -144,3 +158,42 @@ class CommandedOracle(_OneEnvPolicy):
                 return np.array([-1.0, self.damping_action])
             self.recovering = False
         return np.array([self._track(self.setpoint), self.damping_action])
+
+
+class DelayedGainOracle(CommandedOracle):
+    """``oracle_v1`` that learns of a friction-regime change ``delay_steps`` control steps late: an
+    idealised change detector (exact re-identification, a fixed detection delay) for the redesign's
+    question of what a rule could still do (``docs/task_redesign.md``).  Not a benchmarked agent and not
+    honest (it reads the hidden g, only later).
+
+    Before each action it plans with the g of ``delay_steps`` actions ago (the reset's g before that):
+    the command ``D_opt / g_delayed`` with the actual ``D_opt`` and the setpoint of the plant as it is
+    (on WhirlRecovery and RunUp the unconstrained optimum ``D_opt`` lies inside ``[g D_min, g D_max]``
+    for every g of the bounds, so ``D_opt`` and ``lambda_best`` do not depend on g and only the command
+    does).  ``delay_steps = 0`` is ``oracle_v1``."""
+
+    def __init__(self, env, delay_steps: int, name: str | None = None, **kw):
+        if isinstance(delay_steps, bool) or not isinstance(delay_steps, int) or delay_steps < 0:
+            raise ValueError(f"delay_steps must be an integer >= 0, got {delay_steps!r}")
+        super().__init__(env, name=name or f"oracle_delay{delay_steps}", **kw)
+        self.delay_steps = delay_steps
+        self._gains: list[float] = []
+
+    def _plan(self) -> None:
+        self._gains = []
+        super()._plan()
+
+    def _plan_plant(self) -> None:
+        u = self.u
+        self._gains.append(u.damping_gain)
+        known = self._gains[max(0, len(self._gains) - 1 - self.delay_steps)]
+        self.planned_gain = u.damping_gain
+        best = u.best_stable_operating_point()
+        self.setpoint = min(u.speed_command.bearing_number, (1.0 - self.margin) * best.bearing_number)
+        self.damping_action = u.action_from_damping(best.foil_damping / known)
+
+    def _act(self, obs: np.ndarray) -> np.ndarray:
+        if self._started and self._gains:
+            self._plan_plant()  # every step: the g it knows moves with the delay
+            self.planned_gain = self.u.damping_gain
+        return super()._act(obs)

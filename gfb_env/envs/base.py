@@ -418,11 +418,18 @@ class GFBEnv(gym.Env):
             sensors=sensors,
             shocks=tuple(ep.shock_schedule),
             task=dict(ep.task_hidden),
+            **(
+                {}
+                if self.config.damping_regime_changes.is_off
+                else {"damping_gain_start": ep.damping_gain_start, "regime_changes": ep.regime_changes}
+            ),
         )
 
     def hidden_parameters(self) -> dict[str, Any]:
         """Every hidden draw of the current episode as a JSON-serialisable dict (units in the keys;
-        :meth:`~gfb_env.envs.privileged.HiddenParameters.as_dict`): ``damping_gain``, ``bearing`` (the
+        :meth:`~gfb_env.envs.privileged.HiddenParameters.as_dict`): ``damping_gain`` (the current g),
+        ``damping_regime_changes`` (only with that component: the start g and every change so far),
+        ``bearing`` (the
         drawn clearance, stiffness factor, load; None on a nominal bearing), ``unbalance`` (grade,
         amplitude, angle; None when balanced), ``sensors`` (biases, the last observation's noise),
         ``shocks`` (every base shock so far: time, peak, duration, direction) and ``task`` (the start's
@@ -477,9 +484,12 @@ class GFBEnv(gym.Env):
         return ce.best
 
     def _damping_search_range(self) -> tuple[float, float]:
-        """The actual damping any gain of the actuator can reach."""
+        """The actual damping any gain of the actuator can reach (regime changes included)."""
         act, (dmin, dmax) = self.damping_actuator, self.damping_range
         glo, ghi = act.gain_range if act.gain_range is not None else (act.gain, act.gain)
+        if not self.config.damping_regime_changes.is_off:
+            blo, bhi = self._gain_bounds()
+            glo, ghi = min(glo, blo), max(ghi, bhi)
         return glo * dmin, ghi * dmax
 
     def damping_from_action(self, a: float) -> float:
@@ -553,6 +563,7 @@ class GFBEnv(gym.Env):
             orbit=(np.array([rotor[0]]), np.array([rotor[1]])),
             history=history,
             actuator=actuator,
+            damping_gain_start=float(actuator.gain),
             probe_bias_um=probe_bias,
             tap_bias_kpa=tap_bias,
             balance_grade_mm_s=grade,
@@ -676,8 +687,31 @@ class GFBEnv(gym.Env):
             self._integ.bearing_number, a[0], b, self.step_tau, self.bearing_number_limits(b)
         )
         commanded = self.actions.damping_from_action(a[1])
+        if not self.config.damping_regime_changes.is_off:
+            self._change_regimes()
         ep.actuator = self.damping_actuator.step(ep.actuator, commanded, self.control_step_s)
         return lam1, ep.actuator.foil_damping
+
+    def _change_regimes(self) -> None:
+        """The friction-regime changes of the foil in this control step (drawn from ``self.np_random``;
+        only with ``damping_regime_changes``): the effectiveness ``g`` jumps, the actuator's setting
+        stays.  A change anywhere in the step takes effect over the step (the integrator ramps D_W
+        between the step's ends); the best stable point of the new plant is recomputed when asked."""
+        ep, b = self._ep, self._ep.bearing
+        t0 = b.seconds(self._integ.tau)
+        events = self.config.damping_regime_changes.draw(
+            self.np_random, t0, t0 + self.control_step_s, ep.actuator.gain, self._gain_bounds()
+        )
+        if events:
+            ep.actuator = ep.actuator.with_gain(events[-1].gain_after)
+            ep.regime_changes += tuple(events)
+            ep.command.best = None  # the achievable actual damping [g D_min, g D_max] moved
+
+    def _gain_bounds(self) -> tuple[float, float]:
+        """The range the effectiveness ``g`` stays in under regime changes: the component's
+        ``gain_bounds``, else the actuator's ``gain_range`` (the config refuses neither)."""
+        bounds = self.config.damping_regime_changes.gain_bounds
+        return bounds if bounds is not None else self.damping_actuator.gain_range  # type: ignore[return-value]
 
     # ---- plant --------------------------------------------------------------------------------
     def _maybe_kick(self) -> bool:

@@ -18,6 +18,7 @@ from gfb_env.envs._data import NOMINAL_BEARING
 from gfb_env.envs.synchronous_plant import SYNCHRONOUS_RESPONSES
 from gfb_env.integrator import IntegratorOptions
 from gfb_env.machine import (
+    DampingRegimeChanges,
     FoilDampingActuator,
     Motor,
     PressureTaps,
@@ -181,6 +182,9 @@ class EnvConfig:
             kick (``disturbance_probability``): a task uses one or the other.
         rotor_balance: the rotor's residual unbalance, an ISO balance grade drawn per episode
             (:class:`~gfb_env.machine.RotorBalance` or a dict); default perfectly balanced.
+        damping_regime_changes: friction-regime changes of the foil's damping effectiveness ``g``
+            within the episode (:class:`~gfb_env.machine.DampingRegimeChanges` or a dict); default none
+            (``g`` constant, nothing drawn).  Needs its ``gain_bounds`` or the actuator's ``gain_range``.
         privileged_info: add ``info["privileged"]`` (the true quantities and every hidden draw,
             :meth:`~gfb_env.envs.base.GFBEnv.privileged_quantities`) at every reset and step; default
             False (for oracles, teacher-student training and debugging: a benchmarked policy must not
@@ -218,6 +222,7 @@ class EnvConfig:
     pressure_taps: PressureTaps = field(default_factory=PressureTaps.ideal)
     shock_arrivals: ShockArrivals = field(default_factory=ShockArrivals.none)
     rotor_balance: RotorBalance = field(default_factory=RotorBalance.perfect)
+    damping_regime_changes: DampingRegimeChanges = field(default_factory=DampingRegimeChanges.none)
     privileged_info: bool = False
     interface: Any = None
     raw_probe_samples: bool = False
@@ -270,6 +275,12 @@ class EnvConfig:
         put("pressure_taps", component("pressure_taps", PressureTaps, self.pressure_taps))
         put("shock_arrivals", component("shock_arrivals", ShockArrivals, self.shock_arrivals))
         put("rotor_balance", component("rotor_balance", RotorBalance, self.rotor_balance))
+        regimes = component("damping_regime_changes", DampingRegimeChanges, self.damping_regime_changes)
+        put("damping_regime_changes", regimes)
+        if not regimes.is_off and regimes.gain_bounds is None and self.damping_actuator.gain_range is None:
+            raise ValueError(
+                "damping_regime_changes needs gain_bounds when the damping_actuator has no gain_range"
+            )
         put("privileged_info", check_bool("privileged_info", self.privileged_info))
         from gfb_env.envs.interface_v2 import MonitorInterface  # the interface imports this module
 

@@ -121,6 +121,9 @@ class Episode:
             (:class:`~gfb_env.envs.commanded.CommandedEpisode`).
         task_hidden: the task's hidden draws at the start (:attr:`EpisodeSetup.hidden`).
         shock_schedule: every base shock drawn since reset, in time order (the privileged channel).
+        damping_gain_start: the effectiveness ``g`` at reset; regime_changes: every friction-regime
+            change of ``g`` since reset, in time order (:class:`~gfb_env.machine.DampingRegimeChange`;
+            the privileged channel; always empty without ``damping_regime_changes``).
         probe_errors: the probes' :class:`~gfb_env.machine.ProbeErrors` of the last observation (None:
             ideal probes); tap_errors_kpa: the taps' errors of the last observation, kPa (None: ideal);
             observation_noise_draw: the legacy additive noise of the last observation (None: none).
@@ -163,6 +166,8 @@ class Episode:
     command: Any = None
     task_hidden: dict = field(default_factory=dict)
     shock_schedule: tuple = ()
+    damping_gain_start: float = math.nan
+    regime_changes: tuple = ()
     probe_errors: Any = None
     tap_errors_kpa: np.ndarray | None = None
     observation_noise_draw: np.ndarray | None = None

@@ -19,7 +19,9 @@ What is drawn when: the task's draws (:attr:`HiddenParameters.task`: the start),
 bearing, the sensors' biases and the unbalance at ``reset``; the sensor noise with every observation
 (the record holds the last observation's); the base shocks step by step (the schedule holds every
 shock drawn so far in the episode: future shocks are not drawn yet, so nobody, not even the oracle,
-knows them).
+knows them).  Likewise the friction-regime changes of the damping effectiveness (only with
+``damping_regime_changes``, :class:`~gfb_env.machine.DampingRegimeChanges`): ``damping_gain`` is the
+current ``g``, ``damping_regime_changes`` the start ``g`` and every change so far (none ahead).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from gfb_env.machine import ShockEvent
+from gfb_env.machine import DampingRegimeChange, ShockEvent
 from gfb_env.params import BearingParameters
 
 __all__ = ["HiddenParameters", "DrawnBearing", "ResidualUnbalance", "SensorDraws", "flatten_numbers"]
@@ -122,7 +124,8 @@ class HiddenParameters:
     ``env.unwrapped.hidden_parameters()``.
 
     Attributes:
-        damping_gain: the damping effectiveness g (actual D_W = g x commanded).
+        damping_gain: the damping effectiveness g (actual D_W = g x commanded); with regime changes
+            the current one.
         bearing: the actual bearing of the episode (:class:`~gfb_env.params.BearingParameters`; the
             nominal one where the task does not draw it).
         bearing_draw: the drawn clearance, stiffness factor and load (None: the nominal bearing).
@@ -132,6 +135,9 @@ class HiddenParameters:
         task: the task's own draws at the start, with units in the keys (RunUp: the start journal
             velocity ``start_velocity_c_per_t``, ``start_velocity_angle_rad``; WhirlRecovery: the start
             phase on the whirl ``start_phase_tau``).
+        damping_gain_start, regime_changes: the effectiveness at reset and every friction-regime change
+            of it so far (:class:`~gfb_env.machine.DampingRegimeChange`); None where the env has no
+            ``damping_regime_changes`` (then ``as_dict`` has no such key).
     """
 
     damping_gain: float
@@ -141,10 +147,12 @@ class HiddenParameters:
     sensors: SensorDraws
     shocks: tuple[ShockEvent, ...]
     task: dict[str, float]
+    damping_gain_start: float | None = None
+    regime_changes: tuple[DampingRegimeChange, ...] | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-serialisable: plain floats, lists, dicts and None (``json.dumps`` takes it as is)."""
-        return {
+        out = {
             "damping_gain": float(self.damping_gain),
             "bearing": None if self.bearing_draw is None else self.bearing_draw.as_dict(),
             "unbalance": None if self.unbalance is None else self.unbalance.as_dict(),
@@ -160,6 +168,12 @@ class HiddenParameters:
             ],
             "task": {k: float(v) for k, v in self.task.items()},
         }
+        if self.regime_changes is not None:  # only where the env has regime changes (v1/v2 dicts kept)
+            out["damping_regime_changes"] = {
+                "gain_start": float(self.damping_gain_start),
+                "changes": [c.as_dict() for c in self.regime_changes],
+            }
+        return out
 
 
 def flatten_numbers(obj: Any, prefix: str = "") -> list[tuple[str, float]]:

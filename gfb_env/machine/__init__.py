@@ -8,6 +8,9 @@
 * :class:`~gfb_env.machine.pressure_taps.PressureTaps`: midplane pressure taps, offset and noise in kPa;
 * :class:`~gfb_env.machine.shocks.ShockArrivals`: random base shocks (Poisson arrivals) as
   :class:`~gfb_env.machine.shocks.ShockEvent` records;
+* :class:`~gfb_env.machine.regime.DampingRegimeChanges`: friction-regime changes of the foil (abrupt
+  jumps of the damping effectiveness ``g`` at Poisson times, off by default) as
+  :class:`~gfb_env.machine.regime.DampingRegimeChange` records;
 * :class:`~gfb_env.machine.balance.RotorBalance`: the rotor's residual unbalance, an ISO balance grade
   drawn per episode;
 * :class:`~gfb_env.machine.monitor.VibrationMonitor`: the shaft-vibration monitor (direct, 1x and 2x
@@ -27,10 +30,13 @@ from gfb_env.machine.monitor import MonitorReading, ProbeVibration, VibrationMon
 from gfb_env.machine.motor import Motor
 from gfb_env.machine.pressure_taps import PressureTaps
 from gfb_env.machine.probes import ProbeErrors, ProximityProbes
+from gfb_env.machine.regime import DampingRegimeChange, DampingRegimeChanges
 from gfb_env.machine.shocks import ShockArrivals, ShockEvent
 
 __all__ = [
     "DampingActuatorState",
+    "DampingRegimeChange",
+    "DampingRegimeChanges",
     "FoilDampingActuator",
     "MonitorReading",
     "Motor",

@@ -63,6 +63,13 @@ class DampingActuatorState:
         sets, on the command's calibration)."""
         return self.foil_damping / self.gain
 
+    def with_gain(self, gain: float) -> DampingActuatorState:
+        """The state after the foil's effectiveness changed to ``gain`` (a friction-regime change,
+        :class:`~gfb_env.machine.DampingRegimeChanges`): the actuator's own setting (the indicated
+        damping) stays, the actual D_W is the new ``gain`` times it."""
+        g = positive("gain", gain)
+        return DampingActuatorState(self.indicated_damping * g, g)
+
 
 @dataclass(frozen=True)
 class FoilDampingActuator:

@@ -1,14 +1,16 @@
 """The plant's accuracy contract (issue 20): a variant of the plant against a tight reference over whole
 episodes of every v2 task, in units of each observation entry's sensor noise.
 
-    python -m gfb_experiments.plant_accuracy --integrator-options '{"whirl_growth_control": {}}' \\
-        --seeds 0,1,2,3 --out results/plant_accuracy --name growth_control
+    python -m gfb_experiments.plant_accuracy --seeds 0,1 --out results/plant_accuracy --name v2_plant
+    python -m gfb_experiments.plant_accuracy --integrator-options '{}' \\
+        --env-kwargs '{"synchronous_response": "stepped"}' --name default     # the plain plant
 
 Per task, seed and scripted policy (``hold``, ``naive``, ``random``: uniform actions from a generator
 seeded by the episode seed) the policy plays the **reference** (``integrator_options`` rtol = atol = 1e-5,
-``steps_per_revolution`` 128, the task's other defaults); the **variant** (``--integrator-options`` and
-``--env-kwargs``, any keyword arguments of ``gym.make``; ``--plant-kwargs`` go to both sides, e.g. a balanced
-rotor ``{"rotor_balance": {"grade_range_mm_s": [0, 0]}}``) replays the same actions at the same seed, so its
+``steps_per_revolution`` 128, the unbalance forcing stepped at every step: ``synchronous_response``
+"stepped", the task's other defaults); the **variant** (the task as registered, or ``--integrator-options``
+and ``--env-kwargs``, any keyword arguments of ``gym.make``; ``--plant-kwargs`` go to both sides, e.g. a
+balanced rotor ``{"rotor_balance": {"grade_range_mm_s": [0, 0]}}``) replays the same actions at the same seed, so its
 sensor-noise draws are the reference's.  The sensor noise of each observation entry is estimated as the
 root mean square of the difference between the variant and the same variant with noise-free instruments
 (``ProximityProbes`` / ``PressureTaps`` noise 1e-12 instead of 0, so that the random draws stay
@@ -40,16 +42,18 @@ import numpy as np
 from gfb_env.integrator import IntegratorOptions
 from gfb_env.scripting import OneLineParser, check_output_dir, write_json
 
-__all__ = ["REFERENCE_OPTIONS", "TASKS", "POLICIES", "compare_task", "main"]
+__all__ = ["REFERENCE_OPTIONS", "REFERENCE_PLANT", "TASKS", "POLICIES", "compare_task", "main"]
 
 #: The tight reference of the contract: rtol = atol = 1e-5 and 1/128 revolution with an unbalance.
 REFERENCE_OPTIONS: dict[str, Any] = {"rtol": 1e-5, "atol": 1e-5, "steps_per_revolution": 128}
+#: ... and the forcing stepped at every step (the v2 ids superpose the 1x response analytically)
+REFERENCE_PLANT: dict[str, Any] = {"synchronous_response": "stepped"}
 TASKS = ("gfb_env/RunUp-v2", "gfb_env/RunUpRandomized-v2", "gfb_env/WhirlRecovery-v2")
 POLICIES = ("hold", "naive", "random")
 _QUIET = 1e-12  # noise of the "noise-free" instruments (0 would skip the draws and shift the stream)
 
 
-def _make(env_id: str, integrator_options: dict, env_kwargs: dict, quiet: bool = False):
+def _make(env_id: str, integrator_options: dict | None, env_kwargs: dict, quiet: bool = False):
     import gymnasium as gym
 
     import gfb_env.envs  # noqa: F401  (registers the ids)
@@ -59,7 +63,9 @@ def _make(env_id: str, integrator_options: dict, env_kwargs: dict, quiet: bool =
     if quiet:
         kw["proximity_probes"] = ProximityProbes(noise_um=_QUIET)
         kw["pressure_taps"] = PressureTaps(noise_kpa=_QUIET)
-    return gym.make(env_id, integrator_options=integrator_options, **kw)
+    if integrator_options is not None:  # None: the task's own (the v2 ids' BENCHMARK_INTEGRATOR_OPTIONS)
+        kw["integrator_options"] = integrator_options
+    return gym.make(env_id, **kw)
 
 
 def _policy(name: str, env, seed: int):
@@ -122,14 +128,15 @@ def _episode(env, seed: int, actions: Sequence | None = None, policy=None,
     }
 
 
-def compare_task(env_id: str, seeds: Sequence[int], policies: Sequence[str], variant_options: dict,
+def compare_task(env_id: str, seeds: Sequence[int], policies: Sequence[str], variant_options: dict | None,
                  env_kwargs: dict, max_steps: int | None = None,
                  plant_kwargs: dict | None = None,
                  reference_options: dict | None = None) -> dict[str, Any]:  # fmt: skip
     """The contract's numbers of one task (module docstring); ``plant_kwargs`` go to both sides,
     ``reference_options`` over :data:`REFERENCE_OPTIONS`."""
     both = dict(plant_kwargs or {})
-    ref_env = _make(env_id, {**REFERENCE_OPTIONS, **(reference_options or {})}, both)
+    # the reference steps the unbalance forcing (the v2 ids superpose it where the plant is linear)
+    ref_env = _make(env_id, {**REFERENCE_OPTIONS, **(reference_options or {})}, {**REFERENCE_PLANT, **both})
     var_env = _make(env_id, variant_options, {**both, **env_kwargs})
     quiet_env = _make(env_id, variant_options, {**both, **env_kwargs}, quiet=True)
     names = None
@@ -246,7 +253,12 @@ def _names(allowed: Sequence[str], option: str):
 
 def main(argv: Sequence[str] | None = None) -> int:
     p = OneLineParser(prog="python -m gfb_experiments.plant_accuracy", description=__doc__.split("\n")[0])
-    p.add_argument("--integrator-options", type=str, default="{}", help="JSON dict: the variant's options")
+    p.add_argument(
+        "--integrator-options",
+        type=str,
+        default=None,
+        help="JSON dict: the variant's options (default: the task's own, BENCHMARK_INTEGRATOR_OPTIONS on v2)",
+    )
     p.add_argument("--env-kwargs", type=str, default="{}", help="JSON dict: the variant's gym.make kwargs")
     p.add_argument(
         "--plant-kwargs",
@@ -269,7 +281,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--name", type=str, default="variant")
     args = p.parse_args(argv)
     try:
-        options = _json_dict("--integrator-options")(args.integrator_options)
+        options = (
+            None
+            if args.integrator_options is None
+            else _json_dict("--integrator-options")(args.integrator_options)
+        )
         env_kwargs = _json_dict("--env-kwargs")(args.env_kwargs)
         plant_kwargs = _json_dict("--plant-kwargs")(args.plant_kwargs)
         reference_options = _json_dict("--reference-options")(args.reference_options)
@@ -281,7 +297,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise ValueError(f"--max-steps must be >= 1, got {args.max_steps}")
         if not args.name or any(c in args.name for c in "/\\"):
             raise ValueError(f"--name must be a plain file name, got {args.name!r}")
-        IntegratorOptions.from_mapping(options)  # a bad option fails here, before any episode
+        IntegratorOptions.from_mapping(
+            options
+        )  # None: the defaults; a bad option fails here, before any episode
         _make(tasks[0], options, {**plant_kwargs, **env_kwargs}).close()  # and a bad env keyword
         out = check_output_dir(str(args.out), "--out", (f"{args.name}.json", f"{args.name}.csv"))
     except ValueError as exc:

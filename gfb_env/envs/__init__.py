@@ -45,6 +45,7 @@ from gfb_env.envs.run_up import RunUpEnv
 from gfb_env.envs.run_up_randomized import RunUpRandomizedEnv
 from gfb_env.envs.vector import GFBVectorEnv
 from gfb_env.envs.whirl_recovery import WhirlRecoveryEnv
+from gfb_env.integrator import BENCHMARK_INTEGRATOR_OPTIONS
 from gfb_env.machine import (
     FoilDampingActuator,
     PressureTaps,
@@ -67,6 +68,7 @@ __all__ = [
     "NOMINAL_BEARING",
     "ENV_IDS",
     "V2_ENV_IDS",
+    "FAST_PLANT_V2",
     "INTERFACE_V2",
     "MonitorInterface",
     "RETIRED_IDS",
@@ -126,6 +128,17 @@ V1_TASK: dict = {
 #: (:mod:`gfb_env.envs.interface_v2`); the same machine, tasks and horizons as v1.
 INTERFACE_V2 = MonitorInterface()
 
+#: The plant of the v2 ids (issue 20): the synchronous unbalance response superposed analytically where
+#: the plant is linear (:mod:`gfb_env.envs.synchronous_plant`; stepped in the whirl, next to Lambda_c, in
+#: a shock) and the step limit lifted at a settled operating point
+#: (:data:`~gfb_env.integrator.BENCHMARK_INTEGRATOR_OPTIONS`).  Near equilibrium a control step takes ~6
+#: integrator steps instead of 138; accuracy against the tight reference in ``results/plant_accuracy/``.
+#: ``gym.make(id, synchronous_response="stepped", integrator_options={})`` gives the plain plant.
+FAST_PLANT_V2: dict = {
+    "synchronous_response": "superposed",
+    "integrator_options": BENCHMARK_INTEGRATOR_OPTIONS,
+}
+
 _WHIRL_RECOVERY_V1 = {
     **V1_TASK,
     "damping_actuator": FoilDampingActuator(gain_range=V1_WHIRL_RECOVERY_GAIN_RANGE),
@@ -141,16 +154,20 @@ _V1_SPECS = {
 #: the registered task ids -> (entry point, max_episode_steps, default keyword arguments): v1's tasks with
 #: the v2 interface
 _V2_SPECS = {
-    "gfb_env/RunUp-v2": ("gfb_env.envs.run_up:RunUpEnv", 250, {**V1_TASK, "interface": INTERFACE_V2}),
+    "gfb_env/RunUp-v2": (
+        "gfb_env.envs.run_up:RunUpEnv",
+        250,
+        {**V1_TASK, **FAST_PLANT_V2, "interface": INTERFACE_V2},
+    ),
     "gfb_env/RunUpRandomized-v2": (
         "gfb_env.envs.run_up_randomized:RunUpRandomizedEnv",
         250,
-        {**V1_TASK, "interface": INTERFACE_V2},
+        {**V1_TASK, **FAST_PLANT_V2, "interface": INTERFACE_V2},
     ),
     "gfb_env/WhirlRecovery-v2": (
         "gfb_env.envs.whirl_recovery:WhirlRecoveryEnv",
         200,
-        {**_WHIRL_RECOVERY_V1, "interface": INTERFACE_V2},
+        {**_WHIRL_RECOVERY_V1, **FAST_PLANT_V2, "interface": INTERFACE_V2},
     ),
 }
 #: the native vector env of each task (``gymnasium.make_vec(id, num_envs=N)``; :mod:`gfb_env.envs.vector`)

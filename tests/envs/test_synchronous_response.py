@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
+from gfb_env.envs import V2_ENV_IDS
 from gfb_env.envs.config import EnvConfig
 from gfb_env.envs.synchronous_plant import SuperposedResponse
 from gfb_env.equilibrium import find_equilibrium
@@ -161,10 +162,12 @@ def test_bad_option_value_is_refused_naming_it(bad):
         EnvConfig(synchronous_response=bad)
 
 
-def test_default_is_stepped_and_a_balanced_rotor_has_nothing_to_superpose():
-    env = gym.make("gfb_env/RunUp-v2")
+def test_default_is_stepped_the_v2_ids_superpose_and_a_balanced_rotor_has_nothing_to_superpose():
+    assert EnvConfig().synchronous_response == "stepped"  # the config's default: the plain plant
+    for env_id in V2_ENV_IDS:  # the v2 ids register the fast plant (issue 20)
+        assert gym.make(env_id).unwrapped.config.synchronous_response == "superposed"
+    env = gym.make("gfb_env/RunUp-v2", synchronous_response="stepped")
     env.reset(seed=0)
-    assert env.unwrapped.config.synchronous_response == "stepped"
     assert env.unwrapped._sync is None and env.unwrapped._integ.unbalance is not None
     bal = gym.make(
         "gfb_env/RunUp-v2", synchronous_response="superposed", rotor_balance={"grade_range_mm_s": (0, 0)}

@@ -27,9 +27,11 @@ import math
 import numpy as np
 from numba import njit
 
-#: the kernel's status: filled, or the band may be rank-deficient / the columns dependent (use numpy)
+#: the kernel's status (:func:`measure_kernel`)
 OK = 0
 NEEDS_REFERENCE = 1
+BAD_RECORD = 2
+TOO_SLOW = 3
 #: the fields of one probe's row, in :class:`~gfb_env.machine.monitor.ProbeVibration`'s order
 N_FIELDS = 13
 _N_NUISANCE = 6
@@ -73,11 +75,12 @@ def _vector(a: float, b: float, c00: float, c01: float, c11: float, sigma: float
 @njit(cache=True, nogil=True)
 def measure_kernel(
     t: np.ndarray,
-    data: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
     theta: np.ndarray,
     sigma: float,
     keyphasor_rad: float,
-    omega: float,
+    min_revolutions: float,
     band_r0: float,
     band_dr: float,
     n_band: int,
@@ -85,59 +88,92 @@ def measure_kernel(
     scan_dr: float,
     n_scan: int,
     out: np.ndarray,
+    kinematics: np.ndarray,
 ) -> int:
-    """One control step's monitor values (``VibrationMonitor.measure`` past its checks) into ``out``
-    (2, :data:`N_FIELDS`): per probe the :class:`ProbeVibration` fields in order.  ``data`` (2, n):
-    the X and Y samples; ``theta``: the unwrapped rotation angle; the band's ``n_band`` and the scan's
-    ``n_scan`` ratios ``r0 + j dr``.  Returns :data:`OK` or :data:`NEEDS_REFERENCE`."""
+    """One control step's monitor values (``VibrationMonitor.measure``) into ``out`` (2,
+    :data:`N_FIELDS`): per probe (X, Y) the :class:`ProbeVibration` fields in order; and the record's
+    ``(duration s, omega rad/s, running speed rpm, revolutions)`` into ``kinematics`` (4).  ``t``, ``x``,
+    ``y``, ``theta``: one-dimensional, of one length (at least the monitor's ``min_samples``); the band's
+    ``n_band`` and the scan's ``n_scan`` ratios are ``r0 + j dr``.
+
+    Returns :data:`OK`; :data:`BAD_RECORD` (nothing computed) for a record the numpy checks must judge
+    (not finite, times not increasing, angles not within [0, a quarter revolution] per sample: an error,
+    or reduced angles to unwrap); :data:`TOO_SLOW` (only ``kinematics``) below ``min_revolutions``;
+    :data:`NEEDS_REFERENCE` where numpy's band basis may drop a direction."""
     n = t.shape[0]
-    p = _N_NUISANCE + 2 * n_band
+    for i in range(n):
+        if not (
+            math.isfinite(t[i]) and math.isfinite(x[i]) and math.isfinite(y[i]) and math.isfinite(theta[i])
+        ):
+            return BAD_RECORD
+    for i in range(1, n):
+        d = theta[i] - theta[i - 1]
+        if not (t[i] > t[i - 1] and d >= 0.0 and d <= 0.5 * math.pi):
+            return BAD_RECORD
     duration = t[n - 1] - t[0]
+    sweep = theta[n - 1] - theta[0]
+    omega = sweep / duration  # mean running speed, rad/s
+    revolutions = sweep / (2.0 * math.pi)
+    kinematics[0], kinematics[1] = duration, omega
+    kinematics[2], kinematics[3] = omega * 60.0 / (2.0 * math.pi), revolutions
+    if revolutions < min_revolutions:
+        return TOO_SLOW
+    data = np.empty((2, n))
+    for i in range(n):
+        data[0, i], data[1, i] = x[i], y[i]
+    p = _N_NUISANCE + 2 * n_band
     tm = 0.5 * (t[0] + t[n - 1])
-    # --- the columns, one per row (contiguous samples) ----------------------------------------
-    q = np.empty((p, n))
+    # --- the columns, one sample per row ------------------------------------------------------
+    q = np.empty((n, p))
     phis = np.empty(n)
     bc = np.empty(n_band)
     bs = np.empty(n_band)
     for i in range(n):
-        q[0, i] = 1.0
-        q[1, i] = (t[i] - tm) / duration
+        q[i, 0] = 1.0
+        q[i, 1] = (t[i] - tm) / duration
         ph = theta[i] - keyphasor_rad
         c1, s1 = math.cos(ph), math.sin(ph)
-        q[2, i], q[3, i] = c1, s1
-        q[4, i], q[5, i] = math.cos(2.0 * ph), math.sin(2.0 * ph)
+        q[i, 2], q[i, 3] = c1, s1
+        q[i, 4], q[i, 5] = (c1 - s1) * (c1 + s1), 2.0 * s1 * c1  # cos, sin 2 theta
         phi = omega * (t[i] - t[0])
         phis[i] = phi
         _cos_sin_grid(phi, band_r0, band_dr, bc, bs)
         for k in range(n_band):
-            q[_N_NUISANCE + 2 * k, i] = bc[k]
-            q[_N_NUISANCE + 2 * k + 1, i] = bs[k]
+            q[i, _N_NUISANCE + 2 * k] = bc[k]
+            q[i, _N_NUISANCE + 2 * k + 1] = bs[k]
     band_scale = 0.0
     for k in range(_N_NUISANCE, p):
         acc = 0.0
         for i in range(n):
-            acc += q[k, i] * q[k, i]
+            acc += q[i, k] * q[i, k]
         band_scale = max(band_scale, math.sqrt(acc))
-    # --- QR by modified Gram-Schmidt, reorthogonalised once ----------------------------------
+    # --- QR by classical Gram-Schmidt, twice ("twice is enough": orthogonal to rounding) --------
+    # (classical: each pass's j projections are independent sums over the samples, not a chain)
     r = np.zeros((p, p))
+    h = np.empty(p)
     for j in range(p):
         for _ in range(2):
+            h[:j] = 0.0
+            for i in range(n):
+                v = q[i, j]
+                for k in range(j):
+                    h[k] += q[i, k] * v
+            for i in range(n):
+                acc = 0.0
+                for k in range(j):
+                    acc += h[k] * q[i, k]
+                q[i, j] -= acc
             for k in range(j):
-                h = 0.0
-                for i in range(n):
-                    h += q[k, i] * q[j, i]
-                r[k, j] += h
-                for i in range(n):
-                    q[j, i] -= h * q[k, i]
+                r[k, j] += h[k]
         nrm = 0.0
         for i in range(n):
-            nrm += q[j, i] * q[j, i]
+            nrm += q[i, j] * q[i, j]
         nrm = math.sqrt(nrm)
         if not nrm > 0.0:
             return NEEDS_REFERENCE
         r[j, j] = nrm
         for i in range(n):
-            q[j, i] /= nrm
+            q[i, j] /= nrm
     # R^-1 (upper triangular): the covariance (A^T A)^-1 = R^-1 R^-T and the band's rank check
     rinv = np.zeros((p, p))
     for j in range(p - 1, -1, -1):
@@ -161,37 +197,47 @@ def measure_kernel(
                 acc += rinv[2 + a, k] * rinv[2 + b, k]
             cov[a, b] = acc
     # --- coefficients, residual, what the nuisance columns leave -----------------------------
-    z = np.zeros((p, 2))
-    for j in range(p):
-        for m in range(2):
-            acc = 0.0
-            for i in range(n):
-                acc += q[j, i] * data[m, i]
-            z[j, m] = acc
+    z = np.zeros((2, p))
+    for i in range(n):
+        d0, d1 = data[0, i], data[1, i]
+        for j in range(p):
+            z[0, j] += q[i, j] * d0
+            z[1, j] += q[i, j] * d1
     coef = np.zeros((p, 2))
     for m in range(2):
         for j in range(p):
             acc = 0.0
             for k in range(j, p):
-                acc += rinv[j, k] * z[k, m]
+                acc += rinv[j, k] * z[m, k]
             coef[j, m] = acc
-    resid = data.copy()  # after the nuisance columns
-    for j in range(_N_NUISANCE):
-        for m in range(2):
-            h = z[j, m]
-            for i in range(n):
-                resid[m, i] -= h * q[j, i]
+    resid = np.empty((2, n))  # after the nuisance columns
     res_ms = np.zeros(2)
     for m in range(2):
-        acc = 0.0
         for i in range(n):
-            e = resid[m, i]
+            e = data[m, i]
+            for j in range(_N_NUISANCE):
+                e -= z[m, j] * q[i, j]
+            resid[m, i] = e
             for j in range(_N_NUISANCE, p):
-                e -= z[j, m] * q[j, i]
-            acc += e * e
-        res_ms[m] = acc / n
+                e -= z[m, j] * q[i, j]
+            res_ms[m] += e * e
+        res_ms[m] /= n
     # --- the dominant ratio: one sinusoid scanned over the band -------------------------------
-    # sums over the samples, the scan's ratios innermost (independent: they vectorise)
+    # the cos / sin table (samples x ratios; the recurrence runs across the samples, independent),
+    # then sums over the samples with the ratios innermost (independent: they vectorise)
+    tc = np.empty((n, n_scan))
+    ts = np.empty((n, n_scan))
+    cd = np.empty(n)
+    sd = np.empty(n)
+    for i in range(n):
+        phi = phis[i]
+        tc[i, 0], ts[i, 0] = math.cos(scan_r0 * phi), math.sin(scan_r0 * phi)
+        cd[i], sd[i] = math.cos(scan_dr * phi), math.sin(scan_dr * phi)
+    for j in range(1, n_scan):
+        for i in range(n):
+            c, s = tc[i, j - 1], ts[i, j - 1]
+            tc[i, j] = c * cd[i] - s * sd[i]
+            ts[i, j] = s * cd[i] + c * sd[i]
     cc = np.zeros(n_scan)
     ss = np.zeros(n_scan)
     cs = np.zeros(n_scan)
@@ -199,10 +245,8 @@ def measure_kernel(
     vs = np.zeros((2, n_scan))
     qc = np.zeros((_N_NUISANCE, n_scan))
     qs = np.zeros((_N_NUISANCE, n_scan))
-    gc = np.empty(n_scan)
-    gs = np.empty(n_scan)
     for i in range(n):
-        _cos_sin_grid(phis[i], scan_r0, scan_dr, gc, gs)
+        gc, gs = tc[i], ts[i]
         r0i, r1i = resid[0, i], resid[1, i]
         for j in range(n_scan):
             c, s = gc[j], gs[j]
@@ -214,7 +258,7 @@ def measure_kernel(
             vs[0, j] += s * r0i
             vs[1, j] += s * r1i
         for k in range(_N_NUISANCE):
-            qk = q[k, i]
+            qk = q[i, k]
             for j in range(n_scan):
                 qc[k, j] += gc[j] * qk
                 qs[k, j] += gs[j] * qk
@@ -242,7 +286,7 @@ def measure_kernel(
         _vector(coef[2, m], coef[3, m], cov[0, 0], cov[0, 1], cov[1, 1], sigma, vec)
         lev = 0.0
         for j in range(_N_NUISANCE, p):
-            lev += z[j, m] * z[j, m]
+            lev += z[m, j] * z[m, j]
         # the grid maximum (its first), refined by a parabola through it and its neighbours
         kbest = 0
         for j in range(1, n_scan):

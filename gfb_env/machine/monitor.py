@@ -241,29 +241,40 @@ class VibrationMonitor:
 
         Raises ``ValueError`` (naming the argument) for mismatched lengths, non-finite values, fewer than
         :attr:`min_samples` samples, times not increasing or a rotation too fast for the sampling."""
-        t, x, y, theta, sigma, n = self._checked(time_s, x_um, y_um, rotation_angle_rad, noise_um)
-        duration, omega, speed_rpm, revolutions = _kinematics(t, theta)
-        if revolutions < self.min_revolutions:
-            data = np.empty((n, 2))
-            data[:, 0], data[:, 1] = x, y
-            return self._too_slow(t, data, speed_rpm, revolutions, n)
-        data = np.empty((2, n))
-        data[0], data[1] = x, y
-        out = np.empty((2, _kernels.N_FIELDS))
+        # the checks run in the kernel; where it finds fault (or angles to unwrap), numpy's checks judge
+        t, x, y = _floats(time_s), _floats(x_um), _floats(y_um)
+        theta = _floats(rotation_angle_rad)
+        n = len(t)
+        if not (t.ndim == x.ndim == y.ndim == theta.ndim == 1 and n == len(x) == len(y) == len(theta)) or (
+            n < self.min_samples
+        ):
+            t, x, y, theta, sigma, n = self._checked(time_s, x_um, y_um, rotation_angle_rad, noise_um)
+        sigma = nonnegative("noise_um", noise_um)
         ratios, ratios_scan = _ratios(
             self.subsynchronous_band_ratio, self.subsynchronous_frequencies, self.ratio_scan_step
         )
         k = len(ratios)
         band_dr = float(ratios[1] - ratios[0]) if k > 1 else 0.0
-        status = _kernels.measure_kernel(
-            t, data, theta, sigma, math.radians(self.keyphasor_angle_deg), omega,
-            float(ratios[0]), band_dr, k,
-            float(ratios_scan[0]), self.ratio_scan_step, len(ratios_scan), out,
+        out = np.empty((2, _kernels.N_FIELDS))
+        kin = np.empty(4)
+        args = (
+            sigma, math.radians(self.keyphasor_angle_deg), self.min_revolutions, float(ratios[0]), band_dr, k,
+            float(ratios_scan[0]), self.ratio_scan_step, len(ratios_scan), out, kin,
         )  # fmt: skip
-        if status != _kernels.OK:  # the band (almost) inside the nuisance span: numpy's SVD decides
-            return self._fit(t, data.T.copy(), theta, sigma, n, duration, omega, speed_rpm, revolutions)
-        px, py = out.tolist()
-        return MonitorReading(ProbeVibration(*px), ProbeVibration(*py), speed_rpm, revolutions, n, True)
+        status = _kernels.measure_kernel(t, x, y, theta, *args)
+        if status == _kernels.BAD_RECORD:
+            t, x, y, theta, sigma, n = self._checked(time_s, x_um, y_um, rotation_angle_rad, noise_um)
+            status = _kernels.measure_kernel(t, x, y, theta, *args)
+        duration, omega, speed_rpm, revolutions = kin.tolist()
+        if status == _kernels.OK:
+            px, py = out.tolist()
+            return MonitorReading(ProbeVibration(*px), ProbeVibration(*py), speed_rpm, revolutions, n, True)
+        data = np.empty((n, 2))
+        data[:, 0], data[:, 1] = x, y
+        if status == _kernels.TOO_SLOW:
+            return self._too_slow(t, data, speed_rpm, revolutions, n)
+        # the band (almost) inside the nuisance span: numpy's SVD decides what it keeps
+        return self._fit(t, data, theta, sigma, n, duration, omega, speed_rpm, revolutions)
 
     def measure_reference(
         self,
@@ -416,6 +427,10 @@ def _kinematics(t: np.ndarray, theta: np.ndarray) -> tuple[float, float, float, 
     sweep = float(theta[-1] - theta[0])
     omega = sweep / duration  # mean running speed, rad/s
     return duration, omega, omega * 60.0 / (2.0 * math.pi), sweep / (2.0 * math.pi)
+
+
+def _floats(v: np.ndarray) -> np.ndarray:
+    return np.asarray(v, dtype=float)
 
 
 def _series(name: str, v: np.ndarray, n: int | None = None) -> np.ndarray:

@@ -102,23 +102,29 @@ def test_a_band_inside_the_nuisance_span_falls_back_on_numpy():
     t, th, om = record(n=200, revs=6.0)
     rng = np.random.default_rng(5)
     x, y = np.cos(0.305 * om * t) + 0.1 * rng.standard_normal(len(t)), np.cos(th)
-    data = np.array([x, y])
-    out = np.empty((2, kernels.N_FIELDS))
+    out, kin = np.empty((2, kernels.N_FIELDS)), np.empty(4)
     ratios, scan = monitor.band_ratios, np.arange(0.30, 0.3101, 0.005)
+    dr = ratios[1] - ratios[0]
     status = kernels.measure_kernel(
-        t,
-        data,
-        th,
-        0.1,
-        0.0,
-        om,
-        ratios[0],
-        ratios[1] - ratios[0],
-        len(ratios),
-        scan[0],
-        0.005,
-        len(scan),
-        out,
+        t, x, y, th, 0.1, 0.0, 3.5, ratios[0], dr, len(ratios), scan[0], 0.005, len(scan), out, kin
     )
     assert status == kernels.NEEDS_REFERENCE
     assert monitor.measure(t, x, y, th, noise_um=0.1) == monitor.measure_reference(t, x, y, th, noise_um=0.1)
+
+
+def test_reduced_angles_are_unwrapped_and_bad_records_refused_as_before():
+    t, th, om = record()
+    x, y = 3 * np.cos(th) + np.cos(0.4 * om * t), 3 * np.sin(th)
+    monitor = VibrationMonitor()
+    # reduced to [0, 2 pi): the kernel sends them to numpy's checks, which unwrap them
+    got = monitor.measure(t, x, y, np.mod(th, 2 * math.pi)).as_dict()
+    want = monitor.measure(t, x, y, th).as_dict()
+    assert all(math.isclose(got[k], want[k], rel_tol=RTOL, abs_tol=1e-10) for k in want), (got, want)
+    bad_t = t.copy()
+    bad_t[5] = np.nan
+    with pytest.raises(ValueError, match="time_s must be finite"):
+        monitor.measure(bad_t, x, y, th)
+    with pytest.raises(ValueError, match="rotation_angle_rad must not decrease"):
+        monitor.measure(t, x, y, th[::-1].copy())
+    with pytest.raises(ValueError, match="quarter revolution"):
+        monitor.measure(t, x, y, 1.6 * np.arange(len(t)))

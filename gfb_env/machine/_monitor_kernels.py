@@ -314,3 +314,75 @@ def measure_kernel(
         row[11] = coef[1, m] / duration
         row[12] = math.sqrt(res_ms[m])
     return OK
+
+
+@njit(cache=True, nogil=True)
+def probe_step_kernel(
+    xs: np.ndarray,
+    es: np.ndarray,
+    taus: np.ndarray,
+    noise: np.ndarray,
+    clearance_um: float,
+    directions: np.ndarray,
+    inverse_directions: np.ndarray,
+    bias_um: np.ndarray,
+    sample_interval_s: float,
+    velocity_window: int,
+    last: np.ndarray,
+    ramp: np.ndarray,
+    time_scale_s: float,
+    errors: np.ndarray,
+    samples: np.ndarray,
+) -> int:
+    """The v2 interface's probe arithmetic of one control step (``MonitorInterface.read_probes``, noisy
+    probes): what ``ProximityProbes.errors_of_noise`` and ``read_um`` and ``keyphasor_angles`` compute,
+    in one call.  ``xs``, ``es``, ``taus``: the step's journal record (units of C) and its times (tau);
+    ``noise`` (``max(n, velocity_window)``, 2): the step's draw (um); ``last``: the step's end (xi, eta);
+    ``ramp``: ``(tau0, theta0, Lambda0, tau1, Lambda1)`` of the step (``tau0`` NaN: no keyphasor record).
+
+    Fills ``errors`` (5, 2): the position, velocity and extent errors, the last noise sample (as
+    ``ProbeErrors``) and the readings (X, Y) at ``last``; and the first rows of ``samples`` (4, n) with
+    the step's own samples ``(tau0, tau1]``: time (s), X, Y (um), keyphasor angle (rad).  Returns how
+    many samples (0: none)."""
+    n = xs.shape[0]
+    m = noise.shape[0]
+    w = velocity_window
+    inv = inverse_directions
+    u = directions
+    for k in range(2):
+        # noise in the (xi, eta) frame; bias_xe + noise_xe[-1]: the position error
+        bias_xe = inv[k, 0] * bias_um[0] + inv[k, 1] * bias_um[1]
+        errors[0, k] = bias_xe + (noise[m - 1, 0] * inv[k, 0] + noise[m - 1, 1] * inv[k, 1])
+        # velocity: the least-squares slope of the noise over the last w samples
+        num, den = 0.0, 0.0
+        for i in range(w):
+            tt = (i - 0.5 * (w - 1)) * sample_interval_s
+            num += tt * (noise[m - w + i, 0] * inv[k, 0] + noise[m - w + i, 1] * inv[k, 1])
+            den += tt * tt
+        errors[1, k] = num / den
+        # extent: (max - min) of the measured samples less that of the true ones
+        true_lo, true_hi, lo, hi = math.inf, -math.inf, math.inf, -math.inf
+        for i in range(n):
+            tr = (xs[i] if k == 0 else es[i]) * clearance_um
+            me = tr + (noise[m - n + i, 0] * inv[k, 0] + noise[m - n + i, 1] * inv[k, 1])
+            true_lo, true_hi = min(true_lo, tr), max(true_hi, tr)
+            lo, hi = min(lo, me), max(hi, me)
+        errors[2, k] = (hi - lo) - (true_hi - true_lo)
+        errors[3, k] = noise[m - 1, k]
+        xi_um, eta_um = last[0] * clearance_um, last[1] * clearance_um
+        errors[4, k] = u[k, 0] * xi_um + u[k, 1] * eta_um + bias_um[k] + noise[m - 1, k]
+    tau0, theta0, lam0, tau1, lam1 = ramp[0], ramp[1], ramp[2], ramp[3], ramp[4]
+    if not (math.isfinite(tau0) and tau1 > tau0):
+        return 0
+    rate = (lam1 - lam0) / (tau1 - tau0)
+    count = 0
+    for i in range(n):
+        if taus[i] > tau0 + 1e-9:  # the step's own samples
+            xi_um, eta_um = xs[i] * clearance_um, es[i] * clearance_um
+            d = taus[i] - tau0
+            samples[0, count] = taus[i] * time_scale_s
+            samples[1, count] = u[0, 0] * xi_um + u[0, 1] * eta_um + bias_um[0] + noise[m - n + i, 0]
+            samples[2, count] = u[1, 0] * xi_um + u[1, 1] * eta_um + bias_um[1] + noise[m - n + i, 1]
+            samples[3, count] = theta0 + lam0 * d + 0.5 * rate * d * d
+            count += 1
+    return count

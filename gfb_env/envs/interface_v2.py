@@ -186,14 +186,21 @@ class MonitorInterface:
         """One draw of the probes' readings of every sample of the last step: v1's position, velocity
         and envelope errors into ``obs`` and the samples for the monitor (``ep.interface.samples``)."""
         ep, probes = env._ep, env.proximity_probes  # noqa: SLF001
+        xs, taus = ep.orbit[0], ep.orbit_tau
+        if probes.noise_um > 0.0 and taus is not None and len(xs) > 0:
+            self._read_noisy_probes(env, obs, xi, eta)
+        else:
+            self._read_probes_numpy(env, obs, xi, eta)
+
+    def _read_probes_numpy(self, env: GFBEnv, obs: np.ndarray, xi: float, eta: float) -> None:
+        """:meth:`read_probes` in numpy: noise-free probes, a step without a record (and the reference
+        of :meth:`_read_noisy_probes` in the tests)."""
+        ep, probes = env._ep, env.proximity_probes  # noqa: SLF001
         st: InterfaceEpisode = ep.interface
         b = ep.bearing
         c_um = b.clearance_m * 1e6
         xs, es = ep.orbit
         taus = ep.orbit_tau
-        if probes.noise_um > 0.0 and taus is not None and len(xs) > 0:
-            self._read_noisy_probes(env, obs, xi, eta)
-            return
         if len(xs) == 0:  # a step that ended at once (touchdown in its first integrator step)
             xs, es, taus = np.array([xi]), np.array([eta]), None
         xs_um, es_um = np.asarray(xs) * c_um, np.asarray(es) * c_um

@@ -49,7 +49,10 @@ band projection has ``r = 2K`` dimensions: pure noise gives the level ``noise_fl
 samples): it is biased up by the noise (measured in ``tests/machine/test_monitor.py``).
 
 The v2 ids' observation takes it per control step (:mod:`gfb_env.envs.interface_v2`); the v1
-observation does not use it.
+observation does not use it.  :meth:`VibrationMonitor.measure` computes it in one compiled call
+(:mod:`gfb_env.machine._monitor_kernels`: the same quantities to ~1e-12, 79 instead of 560 us per call on
+recorded v2 steps); :meth:`VibrationMonitor.measure_reference` is the numpy implementation, kept as the
+kernel's reference and its fallback.
 """
 
 from __future__ import annotations
@@ -507,9 +510,8 @@ def _single_frequency_power(
 ) -> np.ndarray:
     """For each ratio r: the squared norm of the data's projection onto (cos, sin)(r Omega t) after the
     nuisance columns (orthonormal ``nuisance_q``) are removed from both.  Shape (R, 2)."""
-    # plain matrix products and the 2x2 solve in closed form: the v2 envs call this every control step
-    # (batched einsums and solves cost ~1 ms of a ~1.5 ms step; this ~0.1 ms, the same numbers to
-    # rounding)
+    # plain matrix products and the 2x2 solve in closed form (batched einsums and solves cost ~1 ms;
+    # this ~0.1 ms, the same numbers to rounding).  The reference path only: measure() runs the kernel
     ang = np.outer(ratios, phase_per_ratio)  # (R, n)
     c, s = np.cos(ang), np.sin(ang)
     c -= (c @ nuisance_q) @ nuisance_q.T

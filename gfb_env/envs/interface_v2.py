@@ -72,7 +72,9 @@ from gfb_env.envs.units import (
     EXTENT_BOUND,
 )
 from gfb_env.machine import VibrationMonitor
+from gfb_env.machine._monitor_kernels import probe_step_kernel
 from gfb_env.machine.monitor import MonitorReading, keyphasor_angles
+from gfb_env.machine.probes import ProbeErrors
 
 if TYPE_CHECKING:  # pragma: no cover
     from gfb_env.envs.base import GFBEnv
@@ -195,6 +197,16 @@ class MonitorInterface:
         """One draw of the probes' readings of every sample of the last step: v1's position, velocity
         and envelope errors into ``obs`` and the samples for the monitor (``ep.interface.samples``)."""
         ep, probes = env._ep, env.proximity_probes  # noqa: SLF001
+        xs, taus = ep.orbit[0], ep.orbit_tau
+        if probes.noise_um > 0.0 and taus is not None and len(xs) > 0:
+            self._read_noisy_probes(env, obs, xi, eta)
+        else:
+            self._read_probes_numpy(env, obs, xi, eta)
+
+    def _read_probes_numpy(self, env: GFBEnv, obs: np.ndarray, xi: float, eta: float) -> None:
+        """:meth:`read_probes` in numpy: noise-free probes, a step without a record (and the reference
+        of :meth:`_read_noisy_probes` in the tests)."""
+        ep, probes = env._ep, env.proximity_probes  # noqa: SLF001
         st: InterfaceEpisode = ep.interface
         b = ep.bearing
         c_um = b.clearance_m * 1e6
@@ -227,6 +239,33 @@ class MonitorInterface:
         tau = np.asarray(taus)[keep]
         theta = keyphasor_angles(tau, tau0, theta0, lam0, integ.tau, integ.bearing_number)
         st.samples = (b.seconds(tau), sx, sy, theta)
+
+    def _read_noisy_probes(self, env: GFBEnv, obs: np.ndarray, xi: float, eta: float) -> None:
+        """:meth:`read_probes` of noisy probes and a step with a record: the same draw and the same
+        values (to rounding), its arithmetic in one compiled call (issue 20 s.3)."""
+        ep, probes, integ = env._ep, env.proximity_probes, env._integ  # noqa: SLF001
+        st: InterfaceEpisode = ep.interface
+        b = ep.bearing
+        xs, es = ep.orbit
+        n = len(xs)
+        noise = probes.draw_noise(env.np_random, n)  # the draw of measurement_errors
+        tau0, theta0, lam0 = ep.record_start
+        if ep.step == 0:
+            tau0 = math.nan  # no keyphasor record at reset
+        errors = np.empty((5, 2))
+        samples = np.empty((4, n))
+        ramp = np.array([tau0, theta0, lam0, integ.tau, integ.bearing_number])
+        count = probe_step_kernel(
+            np.asarray(xs, dtype=float), np.asarray(es, dtype=float), np.asarray(ep.orbit_tau, dtype=float),
+            noise, b.clearance_m * 1e6, probes.directions, probes._inverse_directions,  # noqa: SLF001
+            np.asarray(ep.probe_bias_um, dtype=float), b.seconds(env.record_interval), probes.velocity_window,
+            np.array([xi, eta]), ramp, b.time_scale_s, errors, samples,
+        )  # fmt: skip
+        err = ProbeErrors(errors[0], errors[1], errors[2], errors[3])
+        env._apply_probe_errors(obs, err)  # noqa: SLF001
+        ep.probe_readings_um = errors[4]
+        ep.probe_errors = None if probes.is_ideal else err
+        st.samples = None if count == 0 else tuple(samples[:, :count])
 
     def observation(self, env: GFBEnv) -> np.ndarray:
         """The monitor's entries (:data:`MONITOR_ENTRIES`) of the last step's samples."""

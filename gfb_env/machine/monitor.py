@@ -49,7 +49,10 @@ band projection has ``r = 2K`` dimensions: pure noise gives the level ``noise_fl
 samples): it is biased up by the noise (measured in ``tests/machine/test_monitor.py``).
 
 The v2 ids' observation takes it per control step (:mod:`gfb_env.envs.interface_v2`); the v1
-observation does not use it.
+observation does not use it.  :meth:`VibrationMonitor.measure` computes it in one compiled call
+(:mod:`gfb_env.machine._monitor_kernels`: the same quantities to ~1e-12, 79 instead of 560 us per call on
+recorded v2 steps); :meth:`VibrationMonitor.measure_reference` is the numpy implementation, kept as the
+kernel's reference and its fallback.
 """
 
 from __future__ import annotations
@@ -61,6 +64,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gfb_env.forcing import rotation_angle
+from gfb_env.machine import _monitor_kernels as _kernels
 from gfb_env.machine._checks import finite, finite_pair, is_number, nonnegative, positive
 
 __all__ = ["VibrationMonitor", "ProbeVibration", "MonitorReading", "keyphasor_angles"]
@@ -240,32 +244,65 @@ class VibrationMonitor:
 
         Raises ``ValueError`` (naming the argument) for mismatched lengths, non-finite values, fewer than
         :attr:`min_samples` samples, times not increasing or a rotation too fast for the sampling."""
-        t = _series("time_s", time_s)
+        # the checks run in the kernel; where it finds fault (or angles to unwrap), numpy's checks judge
+        t, x, y = _floats(time_s), _floats(x_um), _floats(y_um)
+        theta = _floats(rotation_angle_rad)
         n = len(t)
-        if n < self.min_samples:
-            raise ValueError(f"time_s must have at least {self.min_samples} samples, got {n}")
-        x, y = _series("x_um", x_um, n), _series("y_um", y_um, n)
-        theta = _unwrap(_series("rotation_angle_rad", rotation_angle_rad, n))
+        if not (t.ndim == x.ndim == y.ndim == theta.ndim == 1 and n == len(x) == len(y) == len(theta)) or (
+            n < self.min_samples
+        ):
+            t, x, y, theta, sigma, n = self._checked(time_s, x_um, y_um, rotation_angle_rad, noise_um)
         sigma = nonnegative("noise_um", noise_um)
-        if not (t[1:] > t[:-1]).all():  # (np.diff's values, without its Python layer)
-            raise ValueError("time_s must be strictly increasing")
-        dth = theta[1:] - theta[:-1]
-        if (dth < 0).any():
-            raise ValueError("rotation_angle_rad must not decrease (the rotor turns one way)")
-        if dth.max() > 0.5 * math.pi:
-            raise ValueError(
-                "rotation_angle_rad moves more than a quarter revolution between samples (2x above Nyquist)"
-            )
-        duration = float(t[-1] - t[0])
-        sweep = float(theta[-1] - theta[0])
-        revolutions = sweep / (2.0 * math.pi)
-        omega = sweep / duration  # mean running speed, rad/s
-        speed_rpm = omega * 60.0 / (2.0 * math.pi)
+        ratios, ratios_scan = _ratios(
+            self.subsynchronous_band_ratio, self.subsynchronous_frequencies, self.ratio_scan_step
+        )
+        k = len(ratios)
+        band_dr = float(ratios[1] - ratios[0]) if k > 1 else 0.0
+        out = np.empty((2, _kernels.N_FIELDS))
+        kin = np.empty(4)
+        args = (
+            sigma, math.radians(self.keyphasor_angle_deg), self.min_revolutions, float(ratios[0]), band_dr, k,
+            float(ratios_scan[0]), self.ratio_scan_step, len(ratios_scan), out, kin,
+        )  # fmt: skip
+        status = _kernels.measure_kernel(t, x, y, theta, *args)
+        if status == _kernels.BAD_RECORD:
+            t, x, y, theta, sigma, n = self._checked(time_s, x_um, y_um, rotation_angle_rad, noise_um)
+            status = _kernels.measure_kernel(t, x, y, theta, *args)
+        duration, omega, speed_rpm, revolutions = kin.tolist()
+        if status == _kernels.OK:
+            px, py = out.tolist()
+            return MonitorReading(ProbeVibration(*px), ProbeVibration(*py), speed_rpm, revolutions, n, True)
+        data = np.empty((n, 2))
+        data[:, 0], data[:, 1] = x, y
+        if status == _kernels.TOO_SLOW:
+            return self._too_slow(t, data, speed_rpm, revolutions, n)
+        # the band (almost) inside the nuisance span: numpy's SVD decides what it keeps
+        return self._fit(t, data, theta, sigma, n, duration, omega, speed_rpm, revolutions)
+
+    def measure_reference(
+        self,
+        time_s: np.ndarray,
+        x_um: np.ndarray,
+        y_um: np.ndarray,
+        rotation_angle_rad: np.ndarray,
+        noise_um: float = 0.0,
+    ) -> MonitorReading:
+        """:meth:`measure` by the numpy implementation (numpy's QR, SVD and solves): the reference of
+        the compiled kernel (:mod:`gfb_env.machine._monitor_kernels`; they agree to ~1e-12), and what
+        :meth:`measure` falls back on where the band may be rank-deficient."""
+        t, x, y, theta, sigma, n = self._checked(time_s, x_um, y_um, rotation_angle_rad, noise_um)
+        duration, omega, speed_rpm, revolutions = _kinematics(t, theta)
         data = np.empty((n, 2))
         data[:, 0], data[:, 1] = x, y
         if revolutions < self.min_revolutions:
             return self._too_slow(t, data, speed_rpm, revolutions, n)
+        return self._fit(t, data, theta, sigma, n, duration, omega, speed_rpm, revolutions)
 
+    def _fit(
+        self, t: np.ndarray, data: np.ndarray, theta: np.ndarray, sigma: float, n: int,
+        duration: float, omega: float, speed_rpm: float, revolutions: float,
+    ) -> MonitorReading:  # fmt: skip
+        """The numpy implementation of the filtered values (``data`` (n, 2))."""
         # --- the joint least-squares fit (columns scaled to O(1) for the conditioning) ----------
         tm = 0.5 * (t[0] + t[-1])
         s = (t - tm) / duration  # in [-1/2, 1/2]
@@ -331,6 +368,30 @@ class VibrationMonitor:
             )
         return MonitorReading(probes[0], probes[1], speed_rpm, revolutions, n, True)
 
+    def _checked(
+        self, time_s: np.ndarray, x_um: np.ndarray, y_um: np.ndarray, rotation_angle_rad: np.ndarray,
+        noise_um: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, int]:  # fmt: skip
+        """:meth:`measure`'s checks of its arguments (the ``ValueError`` it documents); the float arrays,
+        the angle unwrapped, the noise and the length."""
+        t = _series("time_s", time_s)
+        n = len(t)
+        if n < self.min_samples:
+            raise ValueError(f"time_s must have at least {self.min_samples} samples, got {n}")
+        x, y = _series("x_um", x_um, n), _series("y_um", y_um, n)
+        theta = _unwrap(_series("rotation_angle_rad", rotation_angle_rad, n))
+        sigma = nonnegative("noise_um", noise_um)
+        if not (t[1:] > t[:-1]).all():  # (np.diff's values, without its Python layer)
+            raise ValueError("time_s must be strictly increasing")
+        dth = theta[1:] - theta[:-1]
+        if (dth < 0).any():
+            raise ValueError("rotation_angle_rad must not decrease (the rotor turns one way)")
+        if dth.max() > 0.5 * math.pi:
+            raise ValueError(
+                "rotation_angle_rad moves more than a quarter revolution between samples (2x above Nyquist)"
+            )
+        return t, x, y, theta, sigma, n
+
     def _too_slow(
         self, t: np.ndarray, data: np.ndarray, speed_rpm: float, revolutions: float, n: int
     ) -> MonitorReading:
@@ -363,6 +424,18 @@ class VibrationMonitor:
 
 
 # ------------------------------------------------------------------------------------------------
+def _kinematics(t: np.ndarray, theta: np.ndarray) -> tuple[float, float, float, float]:
+    """The record's duration (s), mean running speed (rad/s and rpm) and revolutions."""
+    duration = float(t[-1] - t[0])
+    sweep = float(theta[-1] - theta[0])
+    omega = sweep / duration  # mean running speed, rad/s
+    return duration, omega, omega * 60.0 / (2.0 * math.pi), sweep / (2.0 * math.pi)
+
+
+def _floats(v: np.ndarray) -> np.ndarray:
+    return np.asarray(v, dtype=float)
+
+
 def _series(name: str, v: np.ndarray, n: int | None = None) -> np.ndarray:
     a = np.asarray(v, dtype=float)
     if a.ndim != 1:
@@ -437,9 +510,8 @@ def _single_frequency_power(
 ) -> np.ndarray:
     """For each ratio r: the squared norm of the data's projection onto (cos, sin)(r Omega t) after the
     nuisance columns (orthonormal ``nuisance_q``) are removed from both.  Shape (R, 2)."""
-    # plain matrix products and the 2x2 solve in closed form: the v2 envs call this every control step
-    # (batched einsums and solves cost ~1 ms of a ~1.5 ms step; this ~0.1 ms, the same numbers to
-    # rounding)
+    # plain matrix products and the 2x2 solve in closed form (batched einsums and solves cost ~1 ms;
+    # this ~0.1 ms, the same numbers to rounding).  The reference path only: measure() runs the kernel
     ang = np.outer(ratios, phase_per_ratio)  # (R, n)
     c, s = np.cos(ang), np.sin(ang)
     c -= (c @ nuisance_q) @ nuisance_q.T

@@ -28,6 +28,8 @@ COMPILED_SOURCES = (
     "integrator/results.py",
     "integrator/stages.py",
     "analysis/periodic.py",
+    "synchronous.py",
+    "machine/_monitor_kernels.py",
 )
 
 #: the stamp file (in the package's ``__pycache__``): the digest of the sources the caches were made from

@@ -10,8 +10,8 @@ seeded by the episode seed) the policy plays the **reference** (``integrator_opt
 ``steps_per_revolution`` 128, the unbalance forcing stepped at every step: ``synchronous_response``
 "stepped", the task's other defaults); the **variant** (the task as registered, or ``--integrator-options``
 and ``--env-kwargs``, any keyword arguments of ``gym.make``; ``--plant-kwargs`` go to both sides, e.g. a
-balanced rotor ``{"rotor_balance": {"grade_range_mm_s": [0, 0]}}``) replays the same actions at the same seed, so its
-sensor-noise draws are the reference's.  The sensor noise of each observation entry is estimated as the
+balanced rotor ``{"rotor_balance": {"grade_range_mm_s": [0, 0]}}``) replays the same actions at the same
+seed, so its sensor-noise draws are the reference's.  The sensor noise of each observation entry is estimated as the
 root mean square of the difference between the variant and the same variant with noise-free instruments
 (``ProximityProbes`` / ``PressureTaps`` noise 1e-12 instead of 0, so that the random draws stay
 aligned), same seed and actions, pooled over the task's episodes (the rms, not the sd: the monitor's

@@ -2,8 +2,8 @@
 
 The oracle (:class:`gfb_agents.oracles.commanded.CommandedOracle`) acts on the privileged channel and
 the observed speed, which v1 and v2 share bit for bit (v2's first 16 entries are v1's, its random draws
-are v1's), so both versions run the same trajectory: every difference of the verdict is the
-certificate's (v2 forgives a shock's ring-down in the scoring window, :mod:`gfb_env.envs.certify_v2`).
+are v1's; v2 runs on v1's plant, :data:`gfb_env.envs.PLAIN_PLANT`), so both versions run the same
+trajectory: every difference of the verdict is the certificate's (v2 forgives a shock's ring-down in the scoring window, :mod:`gfb_env.envs.certify_v2`).
 Per task: success and certified rates, the shock-in-window episodes, the v1 and v2 returns, the v2
 episode cost.  Run::
 
@@ -22,7 +22,7 @@ import numpy as np
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_agents.oracles.commanded import CommandedOracle
-from gfb_env.envs import RETIRED_V1_IDS, make_env
+from gfb_env.envs import PLAIN_PLANT, RETIRED_V1_IDS, make_env
 from gfb_env.scripting import OneLineParser, check_output_dir, write_json
 from gfb_experiments.v1_task_check import parse_seeds
 
@@ -64,7 +64,11 @@ def _episode(env_id: str, seed: int, **kw: Any) -> dict[str, Any]:
 def run_pair(v1_id: str, seeds: Sequence[int]) -> dict[str, Any]:
     """The oracle's episodes of ``v1_id`` and of its v2 id for ``seeds``; the summary."""
     v2_id = v1_id.replace("-v1", "-v2")
-    rows = {v: [_episode(i, s) for s in seeds] for v, i in (("v1", v1_id), ("v2", v2_id))}
+    # v2 on v1's plant (PLAIN_PLANT): the v2 ids' fast plant (issue 20) would move the last bits
+    rows = {
+        v: [_episode(i, s, **kw) for s in seeds]
+        for v, i, kw in (("v1", v1_id, {}), ("v2", v2_id, PLAIN_PLANT))
+    }
     same = all(
         a["last_obs_v1_entries"] == b["last_obs_v1_entries"]
         for a, b in zip(rows["v1"], rows["v2"], strict=True)

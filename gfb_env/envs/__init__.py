@@ -69,6 +69,7 @@ __all__ = [
     "ENV_IDS",
     "V2_ENV_IDS",
     "FAST_PLANT_V2",
+    "PLAIN_PLANT",
     "INTERFACE_V2",
     "MonitorInterface",
     "RETIRED_IDS",
@@ -133,11 +134,13 @@ INTERFACE_V2 = MonitorInterface()
 #: a shock) and the step limit lifted at a settled operating point
 #: (:data:`~gfb_env.integrator.BENCHMARK_INTEGRATOR_OPTIONS`).  Near equilibrium a control step takes ~6
 #: integrator steps instead of 138; accuracy against the tight reference in ``results/plant_accuracy/``.
-#: ``gym.make(id, synchronous_response="stepped", integrator_options={})`` gives the plain plant.
+#: ``gym.make(id, **PLAIN_PLANT)`` gives the plain plant (v1's, for comparisons and references).
 FAST_PLANT_V2: dict = {
     "synchronous_response": "superposed",
     "integrator_options": BENCHMARK_INTEGRATOR_OPTIONS,
 }
+#: The plain plant: the unbalance forcing stepped at every step, the integrator's default options.
+PLAIN_PLANT: dict = {"synchronous_response": "stepped", "integrator_options": {}}
 
 _WHIRL_RECOVERY_V1 = {
     **V1_TASK,

@@ -12,7 +12,15 @@ import pytest
 from conftest import record_short_episode, same_value
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
-from gfb_env.envs import _V1_SPECS, ENV_IDS, RETIRED_V1_IDS, V2_ENV_IDS, make_retired
+from gfb_env.envs import (
+    _V1_SPECS,
+    ENV_IDS,
+    FAST_PLANT_V2,
+    PLAIN_PLANT,
+    RETIRED_V1_IDS,
+    V2_ENV_IDS,
+    make_retired,
+)
 from gfb_env.envs.certify import StabilityCertificate
 from gfb_env.envs.certify_v2 import AfterShockCertificate
 from gfb_env.envs.contract import InfoClass, classify, hidden_value_matches, unclassified_keys
@@ -43,7 +51,11 @@ def test_the_v2_ids_are_registered_with_the_v1_tasks():
         assert v2 == v1.replace("-v1", "-v2") and s1.entry_point == s2.entry_point
         assert s1.max_episode_steps == s2.max_episode_steps
         assert s1.vector_entry_point == s2.vector_entry_point
-        assert {k: v for k, v in s2.kwargs.items() if k != "interface"} == s1.kwargs
+        # v1's task and machine; v2 adds its interface and the fast plant (issue 20)
+        assert {
+            k: v for k, v in s2.kwargs.items() if k != "interface" and k not in FAST_PLANT_V2
+        } == s1.kwargs
+        assert {k: s2.kwargs[k] for k in FAST_PLANT_V2} == FAST_PLANT_V2
         assert "interface" not in s1.kwargs and make_retired(v1).unwrapped.interface is None
 
 
@@ -89,6 +101,8 @@ def test_v1s_entries_are_v1s_values(env_id):
     for v, make in (("-v1", make_retired), ("-v2", gym.make)):
         # on a drawn bearing v2's step is fixed in seconds (test_v2_control_clock.py): compare on v1's clock
         kw = {"interface": MonitorInterface(control_clock="plant")} if (v, env_id) == ("-v2", RUR2) else {}
+        if v == "-v2":
+            kw.update(PLAIN_PLANT)  # v1's plant (the v2 ids' fast plant changes the last bits)
         env = make(env_id.replace("-v2", v), **kw)
         o, _ = env.reset(seed=4)
         obs = [o] + [env.step(a)[0] for a in actions]

@@ -5,26 +5,24 @@ episodes of every v2 task, in units of each observation entry's sensor noise.
     python -m gfb_experiments.plant_accuracy --integrator-options '{}' \\
         --env-kwargs '{"synchronous_response": "stepped"}' --name default     # the plain plant
 
-Per task, seed and scripted policy (``hold``, ``naive``, ``random``: uniform actions from a generator
-seeded by the episode seed) the policy plays the **reference** (``integrator_options`` rtol = atol = 1e-5,
-``steps_per_revolution`` 128, the unbalance forcing stepped at every step: ``synchronous_response``
-"stepped", the task's other defaults); the **variant** (the task as registered, or ``--integrator-options``
-and ``--env-kwargs``, any keyword arguments of ``gym.make``; ``--plant-kwargs`` go to both sides, e.g. a
-balanced rotor ``{"rotor_balance": {"grade_range_mm_s": [0, 0]}}``) replays the same actions at the same
-seed, so its sensor-noise draws are the reference's.  The sensor noise of each observation entry is estimated as the
-root mean square of the difference between the variant and the same variant with noise-free instruments
-(``ProximityProbes`` / ``PressureTaps`` noise 1e-12 instead of 0, so that the random draws stay
-aligned), same seed and actions, pooled over the task's episodes (the rms, not the sd: the monitor's
-levels are biased up by the noise).  Reported per task and entry: the max ``|variant - reference|`` over
-the common steps but a touchdown's last observation, divided by that noise (the target: <= 1/3), and
-apart from it the difference of the observation at a touchdown (read at the event, which each side puts
-at its own time inside the control step); per episode
-the final ``termination_reason``, ``is_success``, ``certified`` on both sides, the plant's Lambda_c
-(the env's task constants ``lambda_c_dmin``, ``lambda_c_dmax``, ``lambda_best``), the CPU time per control
-step (``time.process_time``) and the integrator steps per control step on both sides.
-
-Writes ``<name>.json`` (everything) and ``<name>.csv`` (one row per task and entry) into ``--out``;
-prints one line per task and a summary line.  Seeds are DEV seeds in [0, 9999].
+Per task, seed and scripted policy (``hold``, ``naive``, ``random``: uniform actions from a generator seeded
+by the episode seed) the policy plays the **reference** (``integrator_options`` rtol = atol = 1e-5,
+``steps_per_revolution`` 128, the unbalance forcing stepped at every step: ``synchronous_response`` "stepped",
+the task's other defaults); the **variant** (the task as registered, or ``--integrator-options`` and
+``--env-kwargs``, any keyword arguments of ``gym.make``; ``--plant-kwargs`` go to both sides, e.g. a balanced
+rotor ``{"rotor_balance": {"grade_range_mm_s": [0, 0]}}``) replays the same actions at the same seed, so its
+sensor-noise draws are the reference's.  The sensor noise of each observation entry is estimated as the root
+mean square of the difference between the variant and the same variant with noise-free instruments
+(``ProximityProbes`` / ``PressureTaps`` noise 1e-12 instead of 0, so that the random draws stay aligned), same
+seed and actions, pooled over the task's episodes (the rms, not the sd: the monitor's levels are biased up by
+the noise).  Reported per task and entry: the max ``|variant - reference|`` over the common steps but a
+touchdown's last observation, divided by that noise (the target: <= 1/3), and apart from it the difference of
+the observation at a touchdown (read at the event, which each side puts at its own time inside the control
+step); per episode the final ``termination_reason``, ``is_success``, ``certified`` on both sides, the plant's
+Lambda_c (the env's task constants ``lambda_c_dmin``, ``lambda_c_dmax``, ``lambda_best``), the CPU time per
+control step (``time.process_time``) and the integrator steps per control step on both sides.  Writes
+``<name>.json`` (everything) and ``<name>.csv`` (one row per task and entry) into ``--out``; prints one line
+per task and a summary line.  Seeds are DEV seeds in [0, 9999].
 """
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
 """The v2 certificate on real episodes (issue 19 s.4): the oracle on each v1 id and its v2 id, same seeds.
 
-The oracle (:class:`gfb_agents.oracles.commanded.CommandedOracle`) acts on the privileged channel and
-the observed speed, which v1 and v2 share bit for bit (v2's first 16 entries are v1's, its random draws
-are v1's; v2 runs on v1's plant, :data:`gfb_env.envs.PLAIN_PLANT`), so both versions run the same
-trajectory: every difference of the verdict is the certificate's (v2 forgives a shock's ring-down in the scoring window, :mod:`gfb_env.envs.certify_v2`).
-Per task: success and certified rates, the shock-in-window episodes, the v1 and v2 returns, the v2
-episode cost.  Run::
+The oracle (:class:`gfb_agents.oracles.commanded.CommandedOracle`) acts on the privileged channel and the
+observed speed, which v1 and v2 share bit for bit (v2's first 16 entries are v1's, its random draws are v1's;
+v2 runs on v1's plant, :data:`gfb_env.envs.PLAIN_PLANT`), so both versions run the same trajectory: every
+difference of the verdict is the certificate's (v2 forgives a shock's ring-down in the scoring window,
+:mod:`gfb_env.envs.certify_v2`). Per task: success and certified rates, the shock-in-window episodes, the v1
+and v2 returns, the v2 episode cost.  Run::
 
     OMP_NUM_THREADS=1 python -m gfb_experiments.v2_task_check --seeds 0-49 --out results/v2_task_check
 

@@ -33,6 +33,7 @@ def test_spinup_lambda_c_is_step_independent_and_its_state_is_the_spinups():
     np.testing.assert_array_equal(cp[0.002].state, spinup_equilibrium(m, lc))
 
 
+@pytest.mark.slow  # 8-16 s: in `make test-slow` (the default run's 10-minute budget)
 def test_spinup_lambda_c_is_where_a_small_perturbation_starts_to_grow():
     """15x5, mu_C = 0.1 (Lambda_c = 0.554627): a rotor kick xi' = 1e-4 from the spin-up's equilibrium,
     600 tau: the peak-to-peak of xi - xi_0 over the last 100 tau against tau 50-150 shrinks at

@@ -72,6 +72,7 @@ def test_infeasible_target_goes_to_the_safe_speed(model):
     assert sch.end_bearing_number == pytest.approx(0.95 * sch.critical_bearing_number)
 
 
+@pytest.mark.slow  # 8-16 s: in `make test-slow` (the default run's 10-minute budget)
 def test_fold_makes_the_hysteresis_band_part_of_the_safe_speed(model):
     # K_W = 1: subcritical Hopf, fold ~2.5 % below Lambda_c; with a 1 % margin the fold is the limit
     sch = design_run_up_schedule(model, 0.65, margin=0.01, fold_dampings=1, n_dampings=9)

@@ -20,6 +20,7 @@ def run(capsys, *argv):
     return code, out, err
 
 
+@pytest.mark.slow  # 8-16 s: in `make test-slow` (the default run's 10-minute budget)
 def test_response_json_keys_at_a_speed_and_verify(tmp_path, capsys):
     code, out, err = run(
         capsys, "response", "--structure", "rigid", "--grid", "31x7", "--unbalance", "0.01",

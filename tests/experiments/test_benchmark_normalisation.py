@@ -283,6 +283,7 @@ def test_the_paths_figure_draws_each_tasks_own_band(tmp_path, monkeypatch):
         bench.plot_paths(paths, {TASK: band}, tmp_path / "q.png", [TASK, "gfb_env/WhirlRecovery-v1"])
 
 
+@pytest.mark.slow  # 8-16 s: in `make test-slow` (the default run's 10-minute budget)
 def test_a_run_on_a_task_without_policies_plays_the_ladder_and_notes_it(tmp_path, capsys):
     """End to end: the policies folder holds only RunUp-v1's; a WhirlRecovery-v1 run is not refused,
     plays naive, hold, its rules and the oracle, and its table and JSON say the learned agents were

@@ -78,6 +78,7 @@ def test_hysteresis_quick(tmp_path):
     assert float(rows[0]["fold_bearing_number"]) < float(rows[0]["critical_bearing_number"])
 
 
+@pytest.mark.slow  # 8-16 s: in `make test-slow` (the default run's 10-minute budget)
 def test_convergence_study_quick(tmp_path):
     _run("convergence_study", tmp_path)
     rows = list(csv.DictReader((tmp_path / "convergence.csv").open()))

@@ -129,6 +129,7 @@ def test_the_probing_schedule_is_fixed_and_holds_its_last_block():
         ProbingSchedule(((0, 0.0, 1.0),))
 
 
+@pytest.mark.slow  # 8-16 s: in `make test-slow` (the default run's 10-minute budget)
 def test_a_smoke_run_writes_the_report(tmp_path, capsys):
     out = tmp_path / "ident"
     args = ["--tasks", "gfb_env/WhirlRecovery-v1", "--ks", "0,1", "--train", "5", "--eval", "2"]

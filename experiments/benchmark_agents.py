@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import hashlib
 import json
 import math
@@ -170,11 +171,28 @@ class Chunk:
             "env_kwargs": self.env_kwargs,
             "record_seed": self.record_seed,
             "model_sha256": _model_digest(self.entry, self.run),
+            "code_sha256": code_digest(),
         }
 
     def path(self, out: Path) -> Path:
         slug = self.task.replace("/", "_")
         return out / CACHE_DIR / self.split / slug / self.entry.name / f"run{self.run}_{self.seeds[0]}.json"
+
+
+@functools.cache
+def code_digest() -> str:
+    """sha256 of the source files of ``gfb_env`` and ``gfb_agents`` (names and bytes): a cached chunk
+    played by other code (another plant, clock, rule) is played again, not reused."""
+    import gfb_agents
+    import gfb_env
+
+    h = hashlib.sha256()
+    for pkg in (gfb_env, gfb_agents):
+        root = Path(pkg.__file__).resolve().parent
+        for f in sorted(root.rglob("*.py")):
+            h.update(str(f.relative_to(root)).encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()
 
 
 def _model_digest(entry: AgentEntry, run: int) -> str | None:

@@ -50,7 +50,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import functools
 import hashlib
 import json
 import math
@@ -179,20 +178,24 @@ class Chunk:
         return out / CACHE_DIR / self.split / slug / self.entry.name / f"run{self.run}_{self.seeds[0]}.json"
 
 
-@functools.cache
 def code_digest() -> str:
     """sha256 of the source files of ``gfb_env`` and ``gfb_agents`` (names and bytes): a cached chunk
-    played by other code (another plant, clock, rule) is played again, not reused."""
+    played by other code (another plant, clock, rule) is played again, not reused.  (A plain function
+    with its own memo, not ``functools.cache``: run as ``__main__`` the chunks' functions are pickled by
+    value for the worker processes, and a cache wrapper is not.)"""
     import gfb_agents
     import gfb_env
 
-    h = hashlib.sha256()
-    for pkg in (gfb_env, gfb_agents):
-        root = Path(pkg.__file__).resolve().parent
-        for f in sorted(root.rglob("*.py")):
-            h.update(str(f.relative_to(root)).encode())
-            h.update(f.read_bytes())
-    return h.hexdigest()
+    memo = code_digest.__dict__
+    if "value" not in memo:
+        h = hashlib.sha256()
+        for pkg in (gfb_env, gfb_agents):
+            root = Path(pkg.__file__).resolve().parent
+            for f in sorted(root.rglob("*.py")):
+                h.update(str(f.relative_to(root)).encode())
+                h.update(f.read_bytes())
+        memo["value"] = h.hexdigest()
+    return memo["value"]
 
 
 def _model_digest(entry: AgentEntry, run: int) -> str | None:

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gfb_env.machine._checks import finite, finite_pair, nonnegative, positive
+from gfb_env.machine.shocks import poisson_arrival_times
 
 __all__ = ["DampingRegimeChange", "DampingRegimeChanges"]
 
@@ -126,13 +127,10 @@ class DampingRegimeChanges:
             raise ValueError(f"end_s must not be before start_s, got [{start_s}, {end_s})")
         g = positive("gain", gain)
         glo, ghi = finite_pair("bounds", bounds, positive_values=True)
-        span = end_s - start_s
-        if self.rate_per_s == 0.0 or span == 0.0:
-            return []
-        n = int(rng.poisson(self.rate_per_s * span))
+        times = poisson_arrival_times(rng, self.rate_per_s, start_s, end_s)
+        n = len(times)
         if n == 0:
             return []
-        times = np.sort(start_s + span * rng.random(n))
         flo, fhi = self.factor_range
         sizes = rng.uniform(math.log(flo), math.log(fhi), n)
         signs = np.where(rng.random(n) < 0.5, -1.0, 1.0)

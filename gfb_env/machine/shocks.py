@@ -26,7 +26,27 @@ import numpy as np
 
 from gfb_env.machine._checks import finite, finite_pair, nonnegative
 
-__all__ = ["ShockArrivals", "ShockEvent"]
+__all__ = ["ShockArrivals", "ShockEvent", "poisson_arrival_times"]
+
+
+def poisson_arrival_times(
+    rng: np.random.Generator, rate_per_s: float, start_s: float, end_s: float
+) -> np.ndarray:
+    """The arrival times (s, sorted) of a Poisson process of ``rate_per_s`` in ``[start_s, end_s)``.
+
+    Draws one Poisson count (none if the rate is 0 or the interval empty), then the times: given the
+    count, a Poisson process's arrival times are independent and uniform.  Raises ``ValueError`` for a
+    non-finite bound or ``end_s < start_s``."""
+    start_s, end_s = finite("start_s", start_s), finite("end_s", end_s)
+    if end_s < start_s:
+        raise ValueError(f"end_s must not be before start_s, got [{start_s}, {end_s})")
+    span = end_s - start_s
+    if rate_per_s == 0.0 or span == 0.0:
+        return np.empty(0)
+    n = int(rng.poisson(rate_per_s * span))
+    if n == 0:
+        return np.empty(0)
+    return np.sort(start_s + span * rng.random(n))
 
 
 @dataclass(frozen=True)
@@ -85,17 +105,10 @@ class ShockArrivals:
 
         Draws: one Poisson count (if ``rate_per_s > 0`` and the interval is not empty), then per event
         its time, peak, duration and direction (vectorised, in that order)."""
-        start_s, end_s = finite("start_s", start_s), finite("end_s", end_s)
-        if end_s < start_s:
-            raise ValueError(f"end_s must not be before start_s, got [{start_s}, {end_s})")
-        span = end_s - start_s
-        if self.rate_per_s == 0.0 or span == 0.0:
-            return []
-        n = int(rng.poisson(self.rate_per_s * span))
+        times = poisson_arrival_times(rng, self.rate_per_s, start_s, end_s)
+        n = len(times)
         if n == 0:
             return []
-        # given the count, a Poisson process's arrival times are independent and uniform
-        times = np.sort(start_s + span * rng.random(n))
         lo, hi = self.peak_g_range
         peaks = np.exp(rng.uniform(math.log(lo), math.log(hi), n))
         durations = rng.uniform(*self.duration_ms_range, n)

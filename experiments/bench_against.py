@@ -13,6 +13,13 @@ Gymnasium's AsyncVectorEnv with 2 workers, and PPO (the same hyperparameters on 
 RunUp-v2 entry of this checkout, which is its RunUp-v1 entry, VecNormalize, one torch thread) on the native
 vector env through the SB3 adapter.
 
+This checkout is also measured with its native vector env in two worker processes (``num_processes=2``,
+:mod:`gfb_env.envs.shards`: the env step's Python on both cores), near equilibrium, in the whirl and under
+PPO; the reference has no such option.  The headline ``native_vector_steps_per_s`` / ``speedup_vs_against``
+is that configuration against the reference's default native vector env (its threads on both cores); the
+one-process figures are ``one_process_*``, and ``ppo_env_steps_per_s`` is the faster of the two PPO
+configurations (``ppo_config`` says which).
+
 The reference of issue 20 is commit 09cb50e (``git worktree add /tmp/base 09cb50e``).  The last line is
 JSON: ``native_vector_steps_per_s``, ``against_native_vector_steps_per_s``, ``speedup_vs_against`` (near
 equilibrium), ``whirl_speedup_vs_against``, ``single_speedup_vs_against``, ``async_speedup_vs_against``,
@@ -66,10 +73,12 @@ def vector_rate(envs, action, n_steps):
         envs.step(acts)
     return n * batches / (time.perf_counter() - t0)
 
-if kind in ("native", "whirl"):
-    env_id = RU if kind == "native" else WR
-    envs = gym.make_vec(env_id, num_envs=16)
-    rate = vector_rate(envs, hold(env_id), steps if kind == "native" else max(48, steps // 2))
+if kind in ("native", "whirl", "native_p2", "whirl_p2"):
+    env_id = RU if kind.startswith("native") else WR
+    # *_p2: the envs in two worker processes (this checkout's num_processes; the old side has none)
+    extra = {"vectorization_mode": "vector_entry_point", "num_processes": 2} if kind.endswith("_p2") else {}
+    envs = gym.make_vec(env_id, num_envs=16, **extra)
+    rate = vector_rate(envs, hold(env_id), steps if kind.startswith("native") else max(48, steps // 2))
     envs.close()
 elif kind == "async":
     envs = gym.make_vec(RU, num_envs=2, vectorization_mode="async")
@@ -87,7 +96,7 @@ elif kind == "single":
             env.reset()
     rate = steps / (time.perf_counter() - t0)
     env.close()
-elif kind == "ppo":
+elif kind in ("ppo", "ppo_p2"):
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
@@ -97,7 +106,8 @@ elif kind == "ppo":
         from gfb_agents.vec_env import GFBSB3VecEnv
     torch.set_num_threads(1)
     hp = a["ppo"]
-    venv = VecNormalize(VecMonitor(GFBSB3VecEnv(gym.make_vec(RU, num_envs=hp["n_envs"]))),
+    extra = {"vectorization_mode": "vector_entry_point", "num_processes": 2} if kind.endswith("_p2") else {}
+    venv = VecNormalize(VecMonitor(GFBSB3VecEnv(gym.make_vec(RU, num_envs=hp["n_envs"], **extra))),
                         gamma=hp["kwargs"].get("gamma", 0.99), **hp["normalize"])
     venv.seed(seed)
     model = PPO(hp["policy"], venv, seed=seed, device="cpu", verbose=0, **hp["kwargs"])
@@ -110,7 +120,9 @@ elif kind == "ppo":
 print(json.dumps({"rate": rate, "load": os.getloadavg()[0]}))
 """
 
-KINDS = ("native", "whirl", "single", "async", "ppo")
+KINDS = ("native", "whirl", "single", "async", "ppo", "native_p2", "whirl_p2", "ppo_p2")
+#: the kinds only this checkout has (its vector env's ``num_processes``): measured on the new side only
+NEW_ONLY = ("native_p2", "whirl_p2", "ppo_p2")
 
 
 #: the PPO entry both sides train with: this checkout's v2 learner defaults (issue 20, item 4; measured by
@@ -159,14 +171,16 @@ def _alternate(sides: dict, rounds: int, env_steps: int, ppo_steps: int, seed: i
     """``{side: {kind: [rate per round]}}``: every kind, both sides, alternating their order per round."""
     ppo = _ppo_settings()
     rates: dict = {side: {k: [] for k in KINDS} for side in sides}
-    kinds = [k for k in KINDS if k != "ppo" or ppo_steps > 0]
+    kinds = [k for k in KINDS if not k.startswith("ppo") or ppo_steps > 0]
     for side in sides:  # warm each checkout's numba caches outside the timing
         _run(sides[side], {"kind": "single", "env_steps": 3, "seed": seed})
     for r in range(rounds):
         for kind in kinds:
             order = ("old", "new") if r % 2 == 0 else ("new", "old")
             for side in order:
-                steps = ppo_steps if kind == "ppo" else env_steps
+                if kind in NEW_ONLY and side != "new":
+                    continue
+                steps = ppo_steps if kind.startswith("ppo") else env_steps
                 res = _run(sides[side], {"kind": kind, "env_steps": steps, "seed": seed, "ppo": ppo})
                 rates[side][kind].append(res["rate"])
                 log(
@@ -191,15 +205,26 @@ def against(
         sides = {"new": _links(new, Path(scratch)), "old": _links(old, Path(scratch))}
         rates = _alternate(sides, rounds, env_steps, ppo_steps, seed, log)
     med = {side: {k: statistics.median(v) for k, v in d.items() if v} for side, d in rates.items()}
+    new, old_ = med["new"], med["old"]
     summary = {
         "against": str(old),
         "rounds": rounds,
         "env_steps": env_steps,
         "ppo_steps": ppo_steps,
-        "native_vector_steps_per_s": med["new"]["native"],
-        "against_native_vector_steps_per_s": med["old"]["native"],
-        "speedup_vs_against": med["new"]["native"] / med["old"]["native"],
-        "whirl_speedup_vs_against": med["new"]["whirl"] / med["old"]["whirl"],
+        # the headline: this checkout's native vector env using both cores (two worker processes,
+        # num_processes=2) against the reference's native vector env with its default (both cores'
+        # threads); the one-process figures follow
+        "native_vector_config": "num_processes=2",
+        "native_vector_steps_per_s": new["native_p2"],
+        "against_native_vector_steps_per_s": old_["native"],
+        "speedup_vs_against": new["native_p2"] / old_["native"],
+        "whirl_native_vector_steps_per_s": new["whirl_p2"],
+        "whirl_speedup_vs_against": new["whirl_p2"] / old_["whirl"],
+        "one_process_native_vector_steps_per_s": new["native"],
+        "one_process_speedup_vs_against": new["native"] / old_["native"],
+        "one_process_whirl_speedup_vs_against": new["whirl"] / old_["whirl"],
+        "two_processes_over_one": new["native_p2"] / new["native"],
+        "whirl_two_processes_over_one": new["whirl_p2"] / new["whirl"],
         "single_speedup_vs_against": med["new"]["single"] / med["old"]["single"],
         "async_speedup_vs_against": med["new"]["async"] / med["old"]["async"],
         "medians": med,
@@ -207,10 +232,14 @@ def against(
         "load_1min_at_end": os.getloadavg()[0],
     }
     if ppo_steps > 0:
-        summary["ppo_env_steps_per_s"] = med["new"]["ppo"]
-        summary["against_ppo_env_steps_per_s"] = med["old"]["ppo"]
-        summary["ppo_speedup_vs_against"] = med["new"]["ppo"] / med["old"]["ppo"]
-        summary["ppo_1m_steps_minutes"] = 1e6 / med["new"]["ppo"] / 60.0
+        best = max(("ppo", "ppo_p2"), key=lambda k: new[k])  # the faster of the two configurations
+        summary["ppo_config"] = "num_processes=2" if best == "ppo_p2" else "one process"
+        summary["ppo_env_steps_per_s"] = new[best]
+        summary["one_process_ppo_env_steps_per_s"] = new["ppo"]
+        summary["two_processes_ppo_env_steps_per_s"] = new["ppo_p2"]
+        summary["against_ppo_env_steps_per_s"] = old_["ppo"]
+        summary["ppo_speedup_vs_against"] = new[best] / old_["ppo"]
+        summary["ppo_1m_steps_minutes"] = 1e6 / new[best] / 60.0
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         (out / "against.json").write_text(json.dumps(summary, indent=1) + "\n")

@@ -334,6 +334,11 @@ class SynchronousSolver:
         self.mode = 0.0j
         self.mode_vector = np.zeros(n, c)
 
+    def __getstate__(self) -> dict:
+        # the cached entry point is a compiled function (it does not pickle); it is found again on the
+        # next call (an env's snapshot goes between processes: the vector env's worker processes)
+        return {**self.__dict__, "_entry": None}
+
     def _call(self, s: np.ndarray, lam: float, dw: float, b: np.ndarray, mu: complex) -> tuple:
         bl = self._blocks
         x = np.empty(b.shape[0], np.complex128)

@@ -17,6 +17,19 @@ one control step as the single env's stages over the whole batch:
    type, exactly ``VectorEnv._add_info``'s arrays).  The results do not depend on the thread count
    or on the order in which the envs finish (each env's finish uses its own state and generator).
 
+Threads share one interpreter lock, so the Python of stages 1 and 3 runs on one core whatever
+``num_threads`` is: RunUp-v2 at N = 16 spends ~27 us per env step in the compiled plant and ~600 in
+that Python (issue 20's profile).  ``num_processes=P`` splits the envs into ``P`` shards, each
+stepped (stages 1-3) by a worker process of its own (:mod:`gfb_env.envs.shards`), all at the same
+time: ``gymnasium.make_vec(id, num_envs=16, vectorization_mode="vector_entry_point",
+num_processes=2)`` uses two cores for the whole step.  Results do not depend on ``P``, with one
+caveat of numba's, not of this package (measured, 2026-12-02): code numba has just compiled in a
+process and the same code loaded from its on-disk cache can differ in the last bits of some
+floating-point results (``synchronous._synchronous_update``: 4e-14), and a chaotic episode grows
+such a difference; a worker always loads the cache, so a process that compiled the kernels itself in
+this session (the first run after an install or an edit) is bit for bit equal to its workers from
+its next session on.
+
 :meth:`GFBEnv.step` is the same three phases for one env.
 
 Semantics: identical, bit for bit, to ``gymnasium.vector.SyncVectorEnv`` over ``gymnasium.make(id)`` (the
@@ -46,9 +59,10 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from gfb_env.envs.base import GFBEnv, PlantResult
+from gfb_env.envs.base import GFBEnv
 from gfb_env.envs.run_up import RunUpEnv
 from gfb_env.envs.run_up_randomized import RunUpRandomizedEnv
+from gfb_env.envs.shards import RemoteEnv, Shard, step_envs
 from gfb_env.envs.whirl_recovery import WhirlRecoveryEnv
 from gfb_env.integrator import BatchAdvance
 
@@ -68,7 +82,12 @@ class GFBVectorEnv(VectorEnv):
         render_mode: ``None`` or ``"rgb_array"`` (``render()`` returns one frame per env).
         num_threads: threads of the compiled plant stage (numba; default: every core numba sees,
             ``numba.config.NUMBA_NUM_THREADS``, itself capped by the environment variable
-            ``NUMBA_NUM_THREADS``); the results do not depend on it.  See :attr:`num_threads`.
+            ``NUMBA_NUM_THREADS``); the results do not depend on it.  See :attr:`num_threads`.  With
+            worker processes each worker uses one thread and this one is not used.
+        num_processes: 1 (default): the envs live in this process; ``P > 1``: they are split into ``P``
+            contiguous shards, each stepped by a worker process of its own at the same time
+            (:mod:`gfb_env.envs.shards`; the way to use several cores for the step's Python, which
+            threads cannot: see the module docstring).  The results do not depend on it.
         **kwargs: the task's keyword arguments (:class:`~gfb_env.envs.config.EnvConfig`), the same for
             every env.
     """
@@ -85,13 +104,23 @@ class GFBVectorEnv(VectorEnv):
         autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
         render_mode: str | None = None,
         num_threads: int | None = None,
+        num_processes: int = 1,
         **kwargs: Any,
     ) -> None:
         super().__init__()
-        #: the compiled batch integrator (its ``num_threads`` may be changed at any time)
-        self._batch = BatchAdvance(num_threads)
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        if (
+            isinstance(num_processes, bool)
+            or not isinstance(num_processes, int | np.integer)
+            or not 1 <= num_processes <= num_envs
+        ):
+            raise ValueError(
+                f"num_processes must be an integer in [1, num_envs={num_envs}], got {num_processes!r}"
+            )
+        #: the compiled batch integrator of this process's envs (its ``num_threads`` may be changed at any
+        #: time); with worker processes one thread each by default (a process per core)
+        self._batch = BatchAdvance(1 if num_threads is None and num_processes > 1 else num_threads)
         if max_episode_steps is not None and (
             isinstance(max_episode_steps, bool)
             or not isinstance(max_episode_steps, int | np.integer)
@@ -110,11 +139,33 @@ class GFBVectorEnv(VectorEnv):
             raise ValueError(f"env_class must be a GFBEnv subclass, got {cls!r}")
         self.num_envs = int(num_envs)
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
-        #: the task envs, unwrapped (the time limit and the order checks are done here)
-        self.envs: list[GFBEnv] = [
-            cls(render_mode=render_mode, **deepcopy(kwargs)) for _ in range(self.num_envs)
-        ]
-        first = self.envs[0]
+        #: the envs' shards: contiguous index ranges, sizes differing by at most one (the larger first);
+        #: one shard (num_processes=1): the envs live in this process; otherwise each shard in a worker
+        #: process of its own (:mod:`gfb_env.envs.shards`) and this one only sends, collects and batches
+        p = int(num_processes)
+        sizes = [self.num_envs // p + (k < self.num_envs % p) for k in range(p)]
+        self._shard_ranges = [range(sum(sizes[:k]), sum(sizes[: k + 1])) for k in range(p)]
+        #: the task envs, unwrapped (the time limit and the order checks are done here); a worker
+        #: process's envs are :class:`~gfb_env.envs.shards.RemoteEnv` proxies
+        self.envs: list[GFBEnv] = []
+        self._shards: list[Shard] = []
+        if p == 1:
+            self.envs = [cls(render_mode=render_mode, **deepcopy(kwargs)) for _ in range(self.num_envs)]
+            first = self.envs[0]
+        else:
+            # one env here checks the arguments before any process starts (one line, as for p = 1)
+            # and gives the spaces; it is never stepped
+            first = cls(render_mode=render_mode, **deepcopy(kwargs))
+            first.close()
+            try:
+                for r in self._shard_ranges:
+                    shard = Shard(cls, len(r), render_mode, deepcopy(kwargs))
+                    self._shards.append(shard)
+                    self.envs.extend(RemoteEnv(shard, j, cls) for j in range(len(r)))
+            except BaseException:
+                for shard in self._shards:
+                    shard.close()
+                raise
         self.metadata = {**first.metadata, "autoreset_mode": self.autoreset_mode}
         self.render_mode = render_mode
         self.single_observation_space = first.observation_space
@@ -326,31 +377,25 @@ class GFBVectorEnv(VectorEnv):
         :meth:`GFBEnv.finish_step` of each); observations, rewards, terminations and time-limit
         truncations into the batch; returns their infos.  No autoreset (the callers' autoreset
         semantics differ)."""
-        envs = [self.envs[i] for i in stepped]
         rows = actions.tolist()  # each env's action as two Python floats (its own check is then cheap)
-        plans = [env.plan_step(rows[i]) for i, env in zip(stepped, envs, strict=True)]
-        infos: list[dict] = [None] * len(plans)  # type: ignore[list-item]
-
-        def finish(p: int, result: PlantResult) -> None:
-            i = stepped[p]
-            obs, reward, terminated, _, info = envs[p].finish_step(plans[p], result)
+        if not self._shards:
+            results = step_envs([self.envs[i] for i in stepped], [rows[i] for i in stepped], self._batch)
+            by_env = dict(zip((int(i) for i in stepped), results, strict=True))
+        else:  # every worker steps its envs at the same time; then their results are collected
+            parts = []
+            for shard, r in zip(self._shards, self._shard_ranges, strict=True):
+                ids = [int(i) for i in stepped if r.start <= i < r.stop]
+                if ids:
+                    shard.start_step([rows[i] for i in ids], [i - r.start for i in ids])
+                    parts.append((shard, ids))
+            by_env = {}
+            for shard, ids in parts:
+                by_env.update(zip(ids, shard.collect_step(), strict=True))
+        for i, (obs, reward, terminated, _) in by_env.items():
             self._observations[i] = obs
             self._rewards[i] = reward
             self._terminations[i] = terminated
-            infos[p] = info
-
-        # the plant of every prepared plan in one batch; each env is finished as soon as its plant
-        # is (in no fixed order with 2+ threads: an env's finish uses its own state and generator
-        # only), while the others are still integrating
-        ready = [p for p, plan in enumerate(plans) if plan.call is not None]
-        for p, plan in enumerate(plans):
-            if plan.call is None:  # its preparation failed: the failure is its result
-                finish(p, plan.failure)
-        self._batch.run_prepared_each(
-            [plans[p].integrator for p in ready],
-            [plans[p].call for p in ready],
-            lambda k, result: finish(ready[k], result),
-        )
+        infos = [by_env[int(i)][3] for i in stepped]
         self._elapsed_steps[stepped] += 1
         if self.max_episode_steps is not None:
             self._truncations[stepped] = self._elapsed_steps[stepped] >= self.max_episode_steps
@@ -430,10 +475,18 @@ class GFBVectorEnv(VectorEnv):
         for env, v in zip(self.envs, values, strict=True):
             setattr(env, name, v)
 
+    @property
+    def num_processes(self) -> int:
+        """Processes the envs run in (this one and its workers; :mod:`gfb_env.envs.shards`)."""
+        return len(self._shard_ranges)
+
     def close_extras(self, **kwargs: Any) -> None:
         self._batch.close()
-        for env in self.envs:
-            env.close()
+        if not self._shards:
+            for env in self.envs:
+                env.close()
+        for shard in self._shards:
+            shard.close()
 
 
 class RunUpVectorEnv(GFBVectorEnv):

@@ -116,6 +116,13 @@ def main(argv: list[str] | None = None) -> int:
         "native vector env (native)",
     )
     ap.add_argument(
+        "--num-processes",
+        type=int,
+        default=1,
+        help="native vector env only: its envs in this many worker processes (default 1: none; the "
+        "results do not depend on it)",
+    )
+    ap.add_argument(
         "--privileged-quantities",
         default=None,
         help="asymmetric_ppo: true step quantities appended to the critic's privileged vector, e.g. "
@@ -173,6 +180,7 @@ def main(argv: list[str] | None = None) -> int:
             torch_threads=a.torch_threads,
             vec_env=a.vec_env,
             privileged_quantities=tuple(q for q in (a.privileged_quantities or "").split(",") if q),
+            num_processes=a.num_processes,
         )
         check_runs(config, run_seeds, a.scheduler)  # everything a run would fail on, before any starts
         recs = train_seeds(

@@ -205,6 +205,7 @@ def make_vec_env_for(
     monitor_dir: str | Path | None = None,
     env_kwargs: dict | None = None,
     vec_env: str = "native",
+    num_processes: int = 1,
 ):
     """A vector env of ``n_envs`` Monitor-wrapped copies of ``env_id`` seeded ``seed, seed+1, ...``.
 
@@ -218,7 +219,8 @@ def make_vec_env_for(
     ``vec_env="native"`` (default, issue 13): the task's native vector env (``gymnasium.make_vec``'s
     vector_entry_point, :class:`gfb_env.envs.vector.GFBVectorEnv`) behind SB3's API
     (:class:`gfb_agents.learned.vec_env.GFBSB3VecEnv`), the same bits as ``"dummy"``, with one ``VecMonitor``
-    (``native.monitor.csv``) instead of one ``Monitor`` per copy."""
+    (``native.monitor.csv``) instead of one ``Monitor`` per copy; ``num_processes > 1`` puts its envs in
+    that many worker processes (:mod:`gfb_env.envs.shards`; the same results)."""
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
@@ -226,11 +228,16 @@ def make_vec_env_for(
 
     if vec_env not in VEC_ENVS:
         raise ValueError(f"vec_env must be one of {VEC_ENVS}, got {vec_env!r}")
+    if num_processes != 1 and vec_env != "native":
+        raise ValueError(f"num_processes: only with vec_env='native', got {num_processes!r} with {vec_env!r}")
     env_kwargs = dict(env_kwargs or {})
     if vec_env == "native":
         from gfb_agents.learned.vec_env import GFBSB3VecEnv
 
-        native = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point", **env_kwargs)
+        native = gym.make_vec(
+            env_id, num_envs=n_envs, vectorization_mode="vector_entry_point", num_processes=num_processes,
+            **env_kwargs,
+        )  # fmt: skip
         # one thread for the compiled plant stage: training runs go in parallel over the seeds (one per
         # core) and the learner's update shares the core; with a busy second core two threads were
         # slower than one (docs/envs.md, bench_env).  The results do not depend on it.
@@ -611,6 +618,8 @@ class TrainConfig:
             envs are then made with ``privileged_info=True``); the episode's draws are always in it.
         vec_env: ``"native"`` (default), ``"dummy"`` or ``"subproc"`` for the training envs
             (:func:`make_vec_env_for`).
+        num_processes: the native vector env's worker processes (1: none; :mod:`gfb_env.envs.shards`).
+            The results do not depend on it, so a run may resume with another value.
     """
 
     algo: str
@@ -632,6 +641,7 @@ class TrainConfig:
     torch_threads: int = 1
     vec_env: str = "native"
     privileged_quantities: tuple[str, ...] = ()
+    num_processes: int = 1
 
     def __post_init__(self) -> None:
         algo = str(self.algo).lower()
@@ -677,6 +687,11 @@ class TrainConfig:
             raise ValueError(f"n_envs must be at most {seeds_mod.MAX_TRAIN_ENVS}, got {self.n_envs}")
         if self.vec_env not in VEC_ENVS:
             raise ValueError(f"vec_env must be one of {VEC_ENVS}, got {self.vec_env!r}")
+        _check_count("num_processes", self.num_processes)
+        if self.num_processes != 1 and self.vec_env != "native":
+            raise ValueError(
+                f"num_processes: only with vec_env='native', got {self.num_processes} with {self.vec_env!r}"
+            )
         for name in ("out", "hyperparams"):
             v = getattr(self, name)
             if v is not None:
@@ -851,7 +866,9 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
     monitor_dir.mkdir(parents=True, exist_ok=True)
     env_seed = seeds_mod.train_env_seed(seed, 0, session)  # env i: env_seed + i (train_env_seed(seed, i))
     train_kwargs = {**env_kwargs, "privileged_info": True} if c.privileged_quantities else env_kwargs
-    venv = make_vec_env_for(env_id, n_envs, env_seed, monitor_dir, train_kwargs, vec_env=c.vec_env)
+    venv = make_vec_env_for(
+        env_id, n_envs, env_seed, monitor_dir, train_kwargs, vec_env=c.vec_env, num_processes=c.num_processes
+    )
     if algo in PRIVILEGED_INPUT_ALGOS:
         # training only: the privileged vector beside the observation (asymmetric_ppo: the critic's
         # input; the validation env and the deployed actor get the plain observation)

@@ -137,6 +137,43 @@ def slider_rate_derivatives(sl, ssum, nr, dz, kw, kt, mu, eta, out):
 
 
 @njit(cache=True)
+def slider_return_map(x, s, f, h, theta, ip, fp):
+    """Solve every slider row of an implicit step exactly for its column's pressures in ``x`` (frictional
+    foil; in place on ``x``'s slider entries): ``S = base + th S'(S, P)`` with ``S'`` the regularised
+    Coulomb law of :func:`slider_rate` (``th`` = h/2 for the trapezoidal rule's slider rows, ``base`` =
+    the step start's S + h/2 S').  The friction force is linear in S (``F = (K_T K_W (-S) - K_T (Pbar - 1))
+    / (K_W + K_T)``) and the law piecewise linear in F, so the row's root is closed-form: stuck if
+    ``|F(base)| <= F_c``, else on the slip branch of F(base)'s sign (the row is monotone in S, so that
+    branch holds the root).  Gives the Newton iteration the slider's branch at the step end instead of
+    the one its Jacobian was taken on (the implicit return map of plasticity codes)."""
+    nc = ip[_NC]
+    nr = ip[_NR]
+    kw = fp[_KW]
+    kt = fp[_KT]
+    mu = fp[_MU]
+    eta = fp[_ETA]
+    npres = nc * nr
+    dz = 1.0 / (nr + 1)
+    c = kt * kw / (kw + kt)
+    th = theta * h
+    for i in range(nc):
+        ssum = 0.0
+        for j in range(nr):
+            ssum += x[i * nr + j]
+        pm1 = dz * (ssum - nr)
+        fc = mu * abs(pm1)
+        a0 = -kt * pm1 / (kw + kt)
+        b = s[npres + i] + (1.0 - theta) * h * f[npres + i]
+        fb = a0 - c * b
+        if fb - fc > 0.0:
+            x[npres + i] = (b + th * (a0 - fc) / eta) / (1.0 + th * c / eta)
+        elif fb + fc < 0.0:
+            x[npres + i] = (b + th * (a0 + fc) / eta) / (1.0 + th * c / eta)
+        else:
+            x[npres + i] = b
+
+
+@njit(cache=True)
 def film_thickness(s, ip, fp, sn, cs, H):
     """Film thickness H_i per column; returns its minimum."""
     nc = ip[_NC]

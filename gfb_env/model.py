@@ -303,9 +303,10 @@ class KernelParameters(NamedTuple):
 #: overstress per unit slider rate).  The slip relaxation time eta (K_W + K_T) / (K_W K_T) is then ~1e-3
 #: for K ~ 1-2, far below the whirl period (~30): the loop energy of an imposed Q = q sin(tau) is within
 #: 0.2-1.2 % of the rate-independent Jenkins loop at eta = 1e-3, and the error is O(eta) (0.02-0.12 % at
-#: 1e-4).  Smaller eta costs integration steps: the slip onsets are boundary layers of width ~eta, which
-#: the step control resolves (measured on 79x7, Lambda = 0.7, mu_C = 0.1, 50 time units: 1638 steps at
-#: eta = 1e-2, 9116 at 1e-3, ~146 000 at 1e-4, against ~285 for the viscoelastic foil).
+#: 1e-4).  Smaller eta costs hardly any integration steps: the Newton iteration solves the slider rows on
+#: their branch (``_kernels.slider_return_map``), so steps cross the slip onsets' boundary layers of
+#: width ~eta (``python -m gfb_experiments.bench_friction``, 79x7, Lambda = 0.7, mu_C = 0.1, 50 time
+#: units: 85 / 84 / 93 steps at eta = 1e-2 / 1e-3 / 1e-4, against 41 for the viscoelastic foil).
 DEFAULT_SLIP_VISCOSITY = 1e-3
 #: Default Coulomb coefficient mu_C of the frictional foil.  Identified bump-foil friction coefficients
 #: are about 0.05-0.2 (the range the literature on bump-foil damping uses, e.g. the structural tests of

@@ -114,6 +114,18 @@ def _newton(
     converged = False
     dprev = 0.0
     iters = 0
+    # Frictional foil: after the prediction and after every update the slider rows are solved exactly
+    # for the iterate's pressures (K.slider_return_map), and their change joins the update's norm.  The
+    # Jacobian's slider rows are those of the step start's branch (a stuck slider: a zero row), so at a
+    # slip onset or a re-stick the plain iteration diverged unless h was cut to ~ the slip relaxation
+    # time eta (K_W + K_T) / (K_W K_T); with the rows solved on the branch the step end is on, the steps
+    # cross the kinks (same trapezoidal equations, same tolerances: only the iteration's path changes).
+    # Other structures skip both branches: their iteration is the one before, bit for bit.
+    frictional = ip[2] == K.FRICTIONAL
+    slider0 = ip[0] * ip[1]  # the slider entries slider0:slider1 (StateLayout.foil_slice)
+    slider1 = slider0 + ip[0]
+    if frictional:
+        K.slider_return_map(x, s, f, hstep, 0.5, ip, fp)
     for it in range(opt.max_newton_iterations):
         iters = it + 1
         K.rhs(x, lam_b, dw_b, ip, fp, sn, cs, fx, H, Hd)
@@ -128,6 +140,12 @@ def _newton(
         )  # fmt: skip
         for i in range(n):
             x[i] += dx[i]
+        if frictional:
+            for i in range(slider0, slider1):
+                r[i] = x[i] - dx[i]  # the slider's iterate before this update (r is spent)
+            K.slider_return_map(x, s, f, hstep, 0.5, ip, fp)
+            for i in range(slider0, slider1):
+                dx[i] = x[i] - r[i]
         dn = _wnorm(dx, x, s, opt.rtol, opt.atol)
         if not dn < 1e30:
             break

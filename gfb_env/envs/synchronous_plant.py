@@ -268,7 +268,7 @@ class SuperposedResponse:
             h0 = self._film[1] if self._film[0] is x0 else self.solver.film_response(x0)
             h1 = self.solver.film_response(self.x)
             self._film = (self.x, h1)
-            i_min = int(np.argmin(self.solver.model.film_thickness(integ.state)))
+            i_min = int(self.solver.model.film_thickness(integ.state).argmin())
             self.deviation = self._whirl_amplitude(tr.tau, tr.xi, tr.eta)
             # the 1x added to every sample in one compiled call (superpose_reference: the numpy of it)
             rotor = np.empty((4, n))

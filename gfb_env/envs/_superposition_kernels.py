@@ -24,7 +24,13 @@ import numpy as np
 from numba import njit, types
 from numba.extending import intrinsic
 
-__all__ = ["superpose_kernel", "superpose_reference", "stepped_residual_kernel", "stepped_residual_reference"]
+__all__ = [
+    "superpose_kernel",
+    "superpose_reference",
+    "stepped_residual_kernel",
+    "stepped_residual_reference",
+    "whirl_amplitude_kernel",
+]
 
 
 @intrinsic
@@ -181,3 +187,40 @@ def stepped_residual_reference(
     xr = x0_xi + w * (x1_xi - x0_xi)
     er = x0_eta + w * (x1_eta - x0_eta)
     return np.array([xi - (xr * rot).real, eta - (er * rot).real])
+
+
+@njit(cache=True, nogil=True)
+def whirl_amplitude_kernel(tau: np.ndarray, xi: np.ndarray, eta: np.ndarray) -> float:
+    """The judge's whirl amplitude (``gfb_env.envs.base._whirl_amplitude``: the largest distance of the
+    journal from its linear trend over the step, units of C; NaN for fewer than 3 samples or a record
+    without a time span or holding NaN) in one pass of sums instead of numpy's pairwise ones: the same to
+    rounding.  For the superposed response's deviation, which only decides against thresholds whether a
+    step is superposed (the judge's own amplitude stays numpy's)."""
+    n = tau.shape[0]
+    if n < 3:
+        return math.nan
+    st, sx, se = 0.0, 0.0, 0.0
+    for i in range(n):
+        st += tau[i]
+        sx += xi[i]
+        se += eta[i]
+    mt, mx, me = st / n, sx / n, se / n
+    denom, tx, te = 0.0, 0.0, 0.0
+    for i in range(n):
+        t = tau[i] - mt
+        denom += t * t
+        tx += t * xi[i]
+        te += t * eta[i]
+    if not denom > 0:
+        return math.nan
+    bx, be = tx / denom, te / denom
+    best = 0.0
+    for i in range(n):
+        t = tau[i] - mt
+        xd = xi[i] - mx - t * bx
+        ed = eta[i] - me - t * be
+        d = xd * xd + ed * ed
+        if d != d:
+            return math.nan
+        best = max(best, d)
+    return math.sqrt(best)

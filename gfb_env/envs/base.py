@@ -48,6 +48,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from gfb_env.envs._superposition_kernels import whirl_amplitude_kernel
 from gfb_env.envs.certify import BestStablePoint, best_stable_operating_point
 from gfb_env.envs.commanded import CertifiedPlant, CommandedEpisode, CommandedObjective, SpeedCommand
 from gfb_env.envs.config import DEFAULT_GRID, ControlClock, EnvConfig
@@ -757,7 +758,10 @@ class GFBEnv(gym.Env):
         model = self._integ.model
         if self._sync_solver is None or self._sync_solver.model is not model:
             self._sync_solver = SynchronousSolver(model)
-        self._sync = SuperposedResponse.start(self._sync_solver, self._integ, unbalance, _whirl_amplitude)
+        # its deviation (a threshold's input, nothing observed) by the compiled amplitude (to rounding)
+        self._sync = SuperposedResponse.start(
+            self._sync_solver, self._integ, unbalance, whirl_amplitude_kernel
+        )
 
     def _rotor_unbalance(self) -> Unbalance | None:
         """The rotor's unbalance (the integrator's, or the superposed response's while it is off there)."""

@@ -30,6 +30,7 @@ COMPILED_SOURCES = (
     "analysis/periodic.py",
     "synchronous.py",
     "machine/_monitor_kernels.py",
+    "envs/_superposition_kernels.py",
 )
 
 #: the stamp file (in the package's ``__pycache__``): the digest of the sources the caches were made from

@@ -21,6 +21,7 @@ with its own ``T = 1.590e-4 s`` that is 7.95 s.  We use the formulas, never the 
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import stat
@@ -196,9 +197,10 @@ class BearingParameters:
         """Bump distance ``l_S = 2 pi R / N_B``."""
         return 2.0 * math.pi * self.radius_m / self.bump_count
 
-    @property
+    @functools.cached_property
     def time_scale_s(self) -> float:
-        """Characteristic time ``T = 6 mu0 / p0 (R/C)^2`` in seconds."""
+        """Characteristic time ``T = 6 mu0 / p0 (R/C)^2`` in seconds (computed once per bearing: the
+        envs convert with it ~20 times per control step; the fields are frozen)."""
         return 6.0 * self.viscosity_pa_s / self.ambient_pressure_pa * (self.radius_m / self.clearance_m) ** 2
 
     @property

@@ -48,6 +48,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from gfb_env.envs._superposition_kernels import whirl_amplitude_kernel
 from gfb_env.envs.certify import BestStablePoint, best_stable_operating_point
 from gfb_env.envs.commanded import CertifiedPlant, CommandedEpisode, CommandedObjective, SpeedCommand
 from gfb_env.envs.config import DEFAULT_GRID, ControlClock, EnvConfig
@@ -168,7 +169,12 @@ class _FromConfig:
         self.name = name
 
     def __get__(self, obj: Any, objtype: type | None = None) -> Any:
-        return self if obj is None else getattr(obj.config, self.name)
+        if obj is None:
+            return self
+        # the config is frozen and set once (``__init__``): kept in the instance's dict on the first
+        # read, which then shadows this (non-data) descriptor (the env reads ~20 per control step)
+        value = obj.__dict__[self.name] = getattr(obj.config, self.name)
+        return value
 
 
 class GFBEnv(gym.Env):
@@ -241,6 +247,7 @@ class GFBEnv(gym.Env):
         self.control_clock = ControlClock(
             cfg.control_interval, cfg.nominal_bearing if clock == "seconds" else None
         )
+        self._clock_values: tuple[BearingParameters, tuple[float, float, float, float]] | None = None
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         low, high = self.observation_layout.bounds()
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
@@ -281,26 +288,38 @@ class GFBEnv(gym.Env):
     def _clock_bearing(self) -> BearingParameters:
         return self._ep.bearing if self._ep is not None else self.nominal_bearing
 
+    def _clock(self) -> tuple[float, float, float, float]:
+        """``(step_tau, control_step_s, record_interval, record_interval_s)`` of the episode's bearing,
+        computed once per bearing (the step reads them ~6 times)."""
+        b = self._clock_bearing
+        cached = self._clock_values
+        if cached is not None and cached[0] is b:
+            return cached[1]
+        c = self.control_clock
+        values = (c.step_tau(b), c.step_s(b), c.record_interval(b), c.record_interval_s(b))
+        self._clock_values = (b, values)
+        return values
+
     @property
     def step_tau(self) -> float:
         """One control step in tau of the episode's plant (:meth:`ControlClock.step_tau`; the v2 clock
         keeps the step's seconds fixed, so on a drawn bearing this is ``60 T_nom / T`` tau)."""
-        return self.control_clock.step_tau(self._clock_bearing)
+        return self._clock()[0]
 
     @property
     def control_step_s(self) -> float:
         """One control step in seconds (v2: ``control_interval x T_nom``, the same on every episode)."""
-        return self.control_clock.step_s(self._clock_bearing)
+        return self._clock()[1]
 
     @property
     def record_interval(self) -> float:
         """The record grid's spacing, tau of the episode's plant (120 samples per control step)."""
-        return self.control_clock.record_interval(self._clock_bearing)
+        return self._clock()[2]
 
     @property
     def record_interval_s(self) -> float:
         """The probes' sampling period, seconds (120 samples per control step)."""
-        return self.control_clock.record_interval_s(self._clock_bearing)
+        return self._clock()[3]
 
     # ------------------------------------------------------------------------------------------
     # task hooks
@@ -739,7 +758,10 @@ class GFBEnv(gym.Env):
         model = self._integ.model
         if self._sync_solver is None or self._sync_solver.model is not model:
             self._sync_solver = SynchronousSolver(model)
-        self._sync = SuperposedResponse.start(self._sync_solver, self._integ, unbalance, _whirl_amplitude)
+        # its deviation (a threshold's input, nothing observed) by the compiled amplitude (to rounding)
+        self._sync = SuperposedResponse.start(
+            self._sync_solver, self._integ, unbalance, whirl_amplitude_kernel
+        )
 
     def _rotor_unbalance(self) -> Unbalance | None:
         """The rotor's unbalance (the integrator's, or the superposed response's while it is off there)."""
@@ -801,7 +823,9 @@ class GFBEnv(gym.Env):
         stable = (
             (not out.touchdown) and (not out.solver_failure) and out.whirl_amplitude <= self.stable_amplitude
         )
-        success = objective.judge(ce, out, stable, ep.step, self._certified_plant())
+        # the certificate reads the plant at the horizon only (CommandedObjective.judge): built there
+        plant = self._certified_plant() if objective.horizon_reached(ep.step + 1) else None
+        success = objective.judge(ce, out, stable, ep.step, plant)
         terms = objective.reward_terms(ce, out)
         if self.interface is None:
             ep.reward_terms = terms
@@ -860,7 +884,9 @@ class GFBEnv(gym.Env):
         obs = np.array(raw, dtype=np.float64)
         # what np.nan_to_num(nan=0, posinf=0, neginf=0) gives, in two ufunc calls (a third of its cost)
         np.copyto(obs, 0.0, where=~np.isfinite(obs))
-        np.clip(obs, self.observation_space.low, self.observation_space.high, out=obs)
+        # np.clip's values for finite entries (what is left), by its two ufuncs without its Python layer
+        space = self.observation_space
+        np.minimum(np.maximum(obs, space.low, out=obs), space.high, out=obs)
         return obs.astype(np.float32)
 
     def _raw_observation(self) -> np.ndarray:
@@ -926,9 +952,19 @@ class GFBEnv(gym.Env):
         C and C / T: the same for every drawn bearing)."""
         nb = self.nominal_bearing
         cnom_um = nb.clearance_m * 1e6
-        obs[[OBS_XI, OBS_ETA]] += err.position_um / cnom_um
-        obs[[OBS_XI_DOT, OBS_ETA_DOT]] += err.velocity_um_per_s * nb.time_scale_s / cnom_um
-        obs[[OBS_XI_EXTENT, OBS_ETA_EXTENT]] += err.extent_um / cnom_um
+        t = nb.time_scale_s
+        # entry by entry: what the arrays' elementwise operations give, without fancy indexing
+        (px, py), (vx, vy), (ex, ey) = (
+            err.position_um.tolist(),
+            err.velocity_um_per_s.tolist(),
+            err.extent_um.tolist(),
+        )
+        obs[OBS_XI] += px / cnom_um
+        obs[OBS_ETA] += py / cnom_um
+        obs[OBS_XI_DOT] += vx * t / cnom_um
+        obs[OBS_ETA_DOT] += vy * t / cnom_um
+        obs[OBS_XI_EXTENT] += ex / cnom_um
+        obs[OBS_ETA_EXTENT] += ey / cnom_um
 
     def _info(self) -> dict:
         ep, integ, model = self._ep, self._integ, self._ep.model

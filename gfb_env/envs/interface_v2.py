@@ -110,6 +110,9 @@ _READING_FIELDS = (
     "subsynchronous_um_rms",
     "subsynchronous_ratio",
 )
+#: the keys of ``info["monitor"]`` per probe (x then y) and all of them in order
+_READING_KEYS_BY_PROBE = tuple(tuple(f"{name}_{f}" for f in _READING_FIELDS) for name in ("x", "y"))
+_READING_KEYS = _READING_KEYS_BY_PROBE[0] + _READING_KEYS_BY_PROBE[1]
 
 
 @dataclass
@@ -361,13 +364,16 @@ class MonitorInterface:
 
     @staticmethod
     def _reading_dict(r: MonitorReading | None) -> dict[str, float]:
-        out: dict[str, float] = {}
-        for name in ("x", "y"):
-            p = None if r is None else getattr(r, name)
-            for f in _READING_FIELDS:
-                v = 0.0 if (p is None or (not r.valid and f != "direct_um_pp")) else float(getattr(p, f))
-                out[f"{name}_{f}"] = v
-        out["valid"] = bool(r is not None and r.valid)
+        if r is None:
+            out = dict.fromkeys(_READING_KEYS, 0.0)
+            out["valid"] = False
+            return out
+        valid = r.valid
+        out = {}
+        for keys, p in zip(_READING_KEYS_BY_PROBE, (r.x.__dict__, r.y.__dict__), strict=True):
+            for key, f in zip(keys, _READING_FIELDS, strict=True):
+                out[key] = float(p[f]) if (valid or f == "direct_um_pp") else 0.0
+        out["valid"] = bool(valid)
         return out
 
     @staticmethod

@@ -39,6 +39,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from gfb_env.envs._superposition_kernels import stepped_residual_kernel, superpose_kernel
 from gfb_env.forcing import Unbalance
 from gfb_env.integrator import AdvanceResult, TrapezoidalIntegrator
 from gfb_env.integrator.results import Trajectory
@@ -106,6 +107,7 @@ class SuperposedResponse:
         self._rate = 0.0
         self._tracked_at = (math.inf, 1.0)  # (Lambda, D_W) of the last tracking step
         self._film: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # (X, its film response)
+        self._indices: tuple[np.ndarray, np.ndarray] | None = None  # (probe indices, their superposed idx)
 
     def __deepcopy__(self, memo: dict) -> SuperposedResponse:
         # the solver is workspace (its tracked mode is state): share the arrays, copy the state
@@ -201,6 +203,17 @@ class SuperposedResponse:
         self.superposed = to_superposed
 
     # ------------------------------------------------------------------------------------------
+    def _superposed_indices(self, probe_indices: np.ndarray) -> np.ndarray:
+        """The state indices of the rotor's 4 entries and the recorded taps (made once per taps)."""
+        cached = self._indices
+        if cached is not None and cached[0] is probe_indices:
+            return cached[1]
+        L = self.solver.model.layout
+        rotor = L.rotor_offset + np.arange(4)
+        idx = np.concatenate([rotor, np.asarray(probe_indices, np.int64)]).astype(np.int64)
+        self._indices = (probe_indices, idx)
+        return idx
+
     def before_step(self, integ: TrapezoidalIntegrator, kick: bool = False) -> None:
         """Decide the mode of the coming step from the last one (and switch if it changes): a step
         with a base shock (scheduled on ``integ``) or a velocity ``kick`` is stepped (its transient
@@ -246,50 +259,49 @@ class SuperposedResponse:
             self.solver.mode = complex(math.inf, 0.0)
         tr = result.trajectory
         L = self.solver.model.layout
-        t = tr.tau - tau0
-        theta = theta0 + lam0 * t + 0.5 * self._rate * t * t
-        w = (t / span) if span > 0 else np.ones_like(t)
-        rot = np.exp(1j * theta)
+        n = len(tr.tau)
+        rate = self._rate
         if self.superposed:
             self.superposed_steps += 1
-            rotor = L.rotor_offset + np.arange(4)
-            idx = np.concatenate([rotor, np.asarray(probe_indices, np.int64)])
-            xs = x0[idx][None, :] + np.outer(w, self.x[idx] - x0[idx])
-            add = (xs * rot[:, None]).real
+            idx = self._superposed_indices(probe_indices)
             # the film's 1x at the step's start was computed at the end of the last one (same X)
             h0 = self._film[1] if self._film[0] is x0 else self.solver.film_response(x0)
             h1 = self.solver.film_response(self.x)
             self._film = (self.x, h1)
-            i_min = int(np.argmin(self.solver.model.film_thickness(integ.state)))
-            dh = ((h0[i_min] + w * (h1[i_min] - h0[i_min])) * rot).real
+            i_min = int(self.solver.model.film_thickness(integ.state).argmin())
             self.deviation = self._whirl_amplitude(tr.tau, tr.xi, tr.eta)
-            xi, eta = tr.xi + add[:, 0], tr.eta + add[:, 1]
-            h = tr.min_film_thickness + dh
+            # the 1x added to every sample in one compiled call (superpose_reference: the numpy of it)
+            rotor = np.empty((4, n))
+            rotor[0], rotor[1], rotor[2], rotor[3] = tr.xi, tr.eta, tr.xi_dot, tr.eta_dot
+            out_rotor, h, probes = np.empty((4, n)), np.empty(n), np.empty(tr.probes.shape)
+            ranges = np.empty(5)
+            superpose_kernel(
+                tr.tau, rotor, tr.min_film_thickness, tr.probes, tau0, theta0, lam0, rate, span, x0, self.x,
+                idx, h0[i_min], h1[i_min], out_rotor, h, probes, ranges,
+            )  # fmt: skip
+            xi, eta = out_rotor[0], out_rotor[1]
             traj = Trajectory(
-                tau=tr.tau,
-                xi=xi,
-                eta=eta,
-                xi_dot=tr.xi_dot + add[:, 2],
-                eta_dot=tr.eta_dot + add[:, 3],
-                min_film_thickness=h,
-                probes=tr.probes + add[:, 4:],
-                bearing_number=tr.bearing_number,
-                foil_damping=tr.foil_damping,
+                tr.tau, xi, eta, out_rotor[2], out_rotor[3], h, probes, tr.bearing_number, tr.foil_damping
             )
-            n = len(tr.tau)
-            result = dataclasses.replace(
-                result,
-                trajectory=traj,
-                min_film_thickness=float(h.min()) if n else result.min_film_thickness,
-                xi_range=(float(xi.min()), float(xi.max())) if n else result.xi_range,
-                eta_range=(float(eta.min()), float(eta.max())) if n else result.eta_range,
-            )
+            if n:
+                min_h, x_lo, x_hi, e_lo, e_hi = ranges.tolist()
+                min_h, xr, er = min_h, (x_lo, x_hi), (e_lo, e_hi)
+            else:
+                min_h, xr, er = result.min_film_thickness, result.xi_range, result.eta_range
+            # (dataclasses.replace's field walk, without it: the same result)
+            result = AdvanceResult(
+                result.status, result.tau, traj, result.touchdown, result.statistics, min_h, xr, er,
+                result.max_eccentricity, result.message,
+            )  # fmt: skip
         else:
             self.stepped_steps += 1
             # the deviation of the stepped motion: the samples less the 1x response
-            xr = x0[L.xi_index] + w * (self.x[L.xi_index] - x0[L.xi_index])
-            er = x0[L.eta_index] + w * (self.x[L.eta_index] - x0[L.eta_index])
-            self.deviation = self._whirl_amplitude(tr.tau, tr.xi - (xr * rot).real, tr.eta - (er * rot).real)
+            less = np.empty((2, n))
+            stepped_residual_kernel(
+                tr.tau, tr.xi, tr.eta, tau0, theta0, lam0, rate, span, x0[L.xi_index], self.x[L.xi_index],
+                x0[L.eta_index], self.x[L.eta_index], less,
+            )  # fmt: skip
+            self.deviation = self._whirl_amplitude(tr.tau, less[0], less[1])
         if not math.isfinite(self.deviation):
             self.deviation = 0.0
         self.min_film = float(result.min_film_thickness)

@@ -29,11 +29,19 @@ import numpy as np
 from numba import njit
 
 from gfb_env import _kernels as K
-from gfb_env._kernels import _invert, _lu, _lu_solve
 from gfb_env.forcing import Unbalance
 from gfb_env.model import GFBModel
 
 __all__ = ["SynchronousSolver", "synchronous_forcing"]
+
+# The block LU of _kernels (complex blocks here) and this module's factorisation and solve are inlined in
+# numba's IR, not called as separately compiled (cached) functions: with those calls, a process that
+# loaded the kernels from numba's on-disk cache computed other last bits (4e-14 on one call) than the
+# process that had compiled them, so the first run after an install or an edit was not the next one
+# (tests/install/test_cache_determinism.py); inlined, both run the same code.
+_lu = njit(inline="always", fastmath=True)(K._lu.py_func)
+_lu_solve = njit(inline="always", fastmath=True)(K._lu_solve.py_func)
+_invert = njit(inline="always", fastmath=True)(K._invert.py_func)
 
 
 def synchronous_forcing(
@@ -51,7 +59,7 @@ def synchronous_forcing(
     return b
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, inline="always")
 def _factor_complex(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, sparse, size_tag):
     """``K.factor_system`` for a complex ``hh`` (complex workspace).  Returns False if a pivot vanishes.
 
@@ -164,7 +172,7 @@ def _factor_complex(hh, Ad, Ap, Am, Er, Rr, Srr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, 
     return _lu(Slu, Spiv, size_tag, 4)
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, inline="always")
 def _solve_complex(hh, Am, Ap, Rr, Dlu, Dpiv, Uhat, Y, Slu, Spiv, nr, rhs_vec, x, zb, sparse, size_tag):
     """``K.solve_system`` for complex factors (:func:`_factor_complex`) and a complex ``rhs_vec``.
 

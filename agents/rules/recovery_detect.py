@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gfb_agents.estimation.gain import GainPosterior
+from gfb_agents.rules.margin_search import Mode
 from gfb_agents.rules.recovery import RecoveryMemory
 from gfb_agents.rules.recovery_reset import RecoveryResetAgent
 from gfb_env.analysis import jacobian_eigenvalues
@@ -81,6 +82,9 @@ class SubsyncCusum:
         floor0: float | None = None,
         jump: float = 1.0,
         jump_holdoff: int = 5,
+        sustain_steps: int = 10,
+        sustain_level: float = 8.0,
+        sustain_slope: float = -0.02,
     ):
         if not (drift >= 0 and threshold > 0 and 1 <= arm <= alarm_level and rises >= 1 and clip > 0):
             raise ValueError(
@@ -103,6 +107,10 @@ class SubsyncCusum:
                 f"jump must exceed clip and jump_holdoff be >= 0, got {jump!r}, {jump_holdoff!r}"
             )
         self.jump, self.jump_holdoff = float(jump), int(jump_holdoff)
+        if sustain_steps < 0 or sustain_steps == 1:
+            raise ValueError(f"sustain_steps must be 0 (off) or >= 2, got {sustain_steps!r}")
+        self.sustain_steps, self.sustain_level = int(sustain_steps), float(sustain_level)
+        self.sustain_slope = float(sustain_slope)
         self.reset()
 
     def reset(self) -> None:
@@ -117,6 +125,9 @@ class SubsyncCusum:
         self.prev: float | None = None
         self.up = 0
         self.off = 0
+        self.recent: list[float] = []
+        #: the last alarm's kind: "growth" (the CUSUM) or "sustained"
+        self.kind: str | None = None
 
     @property
     def floor(self) -> float | None:
@@ -132,7 +143,7 @@ class SubsyncCusum:
             self.off = self.jump_holdoff  # a shock's pulse
         if self.off > 0:
             self.off -= 1
-            self.stat, self.up, self.prev = 0.0, 0, level
+            self.stat, self.up, self.prev, self.recent = 0.0, 0, level, []
             return False
         floor = self.floor
         if self.stat == 0.0:
@@ -148,7 +159,24 @@ class SubsyncCusum:
             else:
                 self.stat = 0.0
         self.prev = level
-        return self.stat > self.threshold and level >= self.alarm_level * floor and self.up >= self.rises
+        if self.stat > self.threshold and level >= self.alarm_level * floor and self.up >= self.rises:
+            self.kind = "growth"
+            return True
+        if self._sustained(level, floor):
+            self.kind = "sustained"
+            return True
+        return False
+
+    def _sustained(self, level: float, floor: float) -> bool:
+        if self.sustain_steps == 0:
+            return False
+        self.recent = (
+            (self.recent + [level])[-self.sustain_steps :] if level >= self.sustain_level * floor else []
+        )
+        if len(self.recent) < self.sustain_steps:
+            return False
+        slope = float(np.polyfit(np.arange(self.sustain_steps, dtype=float), np.log(self.recent), 1)[0])
+        return slope > self.sustain_slope
 
 
 class WhirlRatioTable:
@@ -231,6 +259,9 @@ class RecoveryDetectAgent(RecoveryResetAgent):
         holdoff: steps after a re-identification before the detector runs again (the new damping's
             transient; the statistic restarts).
         min_rate: an alarm re-identifies only where the fitted growth rate (log per step) exceeds this.
+        recover_envelope: an alarm with the orbit envelope above this (units of C), or a sustained
+            whirl's alarm, also backs the speed off by ``backoff`` until calm (``margin_search``'s
+            recovering, without its speed cap): below the fold the subcritical cycle collapses.
         **kw: :class:`RecoveryResetAgent`'s.
     """
 
@@ -243,6 +274,7 @@ class RecoveryDetectAgent(RecoveryResetAgent):
         fit_steps: int = 6,
         holdoff: int = 3,
         min_rate: float = 0.0,
+        recover_envelope: float = 0.3,
         name: str = "recovery_detect",
         **kw,
     ):
@@ -260,6 +292,7 @@ class RecoveryDetectAgent(RecoveryResetAgent):
         SubsyncCusum(**self.detector_kw)  # bad settings: one clear error now
         self.rate_sd, self.ratio_sd = float(rate_sd), float(ratio_sd)
         self.fit_steps, self.holdoff, self.min_rate = int(fit_steps), int(holdoff), float(min_rate)
+        self.recover_envelope = float(recover_envelope)
         layout = u.observation_layout
         self._band = (layout.index("x_subsync_rms"), layout.index("y_subsync_rms"))
         self._ratio = layout.index("subsync_ratio")
@@ -288,11 +321,12 @@ class RecoveryDetectAgent(RecoveryResetAgent):
 
     # -- the re-identification ----------------------------------------------------------------
     def change_log_likelihood(
-        self, samples: list[BandSample], floor: float, gains: np.ndarray
+        self, samples: list[BandSample], floor: float, gains: np.ndarray, min_rate: float | None = None
     ) -> np.ndarray | None:
-        """Log-likelihood over ``gains`` of the latest growing steps (same commanded damping): the
-        growth rate of the floor-corrected level (least squares) and its energy-weighted ratio; None
-        where the fitted level does not grow (``min_rate``)."""
+        """Log-likelihood over ``gains`` of the latest steps at one commanded damping: the growth rate of
+        the floor-corrected level (least squares) and its energy-weighted ratio; None where the fitted
+        rate is not above ``min_rate`` (default the rule's: a decaying transient is no sign of a change)."""
+        min_rate = self.min_rate if min_rate is None else min_rate
         d, lam = samples[-1].d, samples[-1].lam
         run = []
         for s in reversed(samples):
@@ -306,7 +340,7 @@ class RecoveryDetectAgent(RecoveryResetAgent):
         if len(run) >= 2:
             t = np.arange(len(run), dtype=float)
             rate = float(np.polyfit(t, np.log(sig), 1)[0])
-            if rate <= self.min_rate:  # not growing (a decaying transient): no evidence of a change
+            if rate <= min_rate:  # not growing (a decaying transient): no evidence of a change
                 return None
             pred = self.step_tau(self.nominal) * self._tables["nominal"].growth_rate(lam, actual)
             ll += -0.5 * ((rate - pred) / self.rate_sd) ** 2
@@ -317,12 +351,12 @@ class RecoveryDetectAgent(RecoveryResetAgent):
             ll += -0.5 * ((ratio - self.ratio_table()(lam, actual)) / self.ratio_sd) ** 2
         return ll
 
-    def reidentify(self, m: DetectMemory, floor: float) -> None:
+    def reidentify(self, m: DetectMemory, floor: float, min_rate: float | None = None) -> bool:
         """A change: the posterior over ``g`` becomes the prior times the band's likelihood; the old
-        regime's speed cap goes; decide again."""
-        ll = self.change_log_likelihood(m.band, floor, m.post.gains)
+        regime's speed cap goes; decide again.  False (nothing done) where the band does not grow."""
+        ll = self.change_log_likelihood(m.band, floor, m.post.gains, min_rate)
         if ll is None:
-            return
+            return False
         post = GainPosterior(self.gain_range, n=len(m.post.gains))
         post.log_w = ll - ll.max()
         post.measurements.append(("regime_change", m.k))
@@ -332,6 +366,7 @@ class RecoveryDetectAgent(RecoveryResetAgent):
         m.dirty = True
         m.band = []
         m.holdoff = self.holdoff
+        return True
 
     # -- the step -----------------------------------------------------------------------------
     def _band_step(self, obs: np.ndarray, rpm: float, m: DetectMemory) -> None:
@@ -352,8 +387,14 @@ class RecoveryDetectAgent(RecoveryResetAgent):
             return
         if det.update(level):
             m.alarms.append(m.k)
-            self.reidentify(m, det.floor)
+            # a sustained whirl may decay slowly (its slope above the detector's sustain_slope)
+            self.reidentify(m, det.floor, det.sustain_slope if det.kind == "sustained" else None)
             det.restart()
+            big = self.spec.observations.envelope(o) > self.recover_envelope or det.kind == "sustained"
+            if big and m.mode is Mode.RUN:
+                # caught late (a shock's transient grew): the orbit may already ride the subcritical
+                # cycle that outlives the new damping's stability; back off below it as the guard does
+                m.mode, m.calm, m.recover_rpm = Mode.RECOVER, 0, rpm * (1 - self.backoff)
 
     def _on_run(self, obs: np.ndarray, rpm: float, m: DetectMemory) -> list[float]:
         if m.k == 0 or not isinstance(m, DetectMemory):

@@ -205,6 +205,12 @@ def _make_recovery_reset(env) -> Policy:
     return RecoveryResetAgent(getattr(env, "unwrapped", env))
 
 
+def _make_recovery_detect(env) -> Policy:
+    from gfb_agents.rules.recovery_detect import RecoveryDetectAgent
+
+    return RecoveryDetectAgent(getattr(env, "unwrapped", env))
+
+
 def make_commanded_oracle(env) -> Policy:
     """The commanded-speed tasks' oracle (:class:`gfb_agents.oracles.commanded.CommandedOracle`; v2 and the
     retired v1)."""
@@ -256,6 +262,12 @@ _V1_RULES = (
         (_WR1, _WR2),
         _make_recovery_reset,
         "recovery, g from the reset observation and the first step's particle update; no probe if sharp",
+    ),
+    (
+        "recovery_detect",
+        (_WR2,),
+        _make_recovery_detect,
+        "recovery_reset plus a CUSUM on the sub-synchronous growth; re-identify g from rate and whirl ratio",
     ),
 )
 

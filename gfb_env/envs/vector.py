@@ -19,10 +19,11 @@ one control step as the single env's stages over the whole batch:
 
 Threads share one interpreter lock, so the Python of stages 1 and 3 runs on one core whatever
 ``num_threads`` is: RunUp-v2 at N = 16 spends ~27 us per env step in the compiled plant and ~600 in
-that Python (issue 20's profile).  ``num_processes=P`` splits the envs into ``P`` shards, each
-stepped (stages 1-3) by a worker process of its own (:mod:`gfb_env.envs.shards`), all at the same
-time: ``gymnasium.make_vec(id, num_envs=16, vectorization_mode="vector_entry_point",
-num_processes=2)`` uses two cores for the whole step.  Results do not depend on ``P`` (tested).
+that Python (issue 20's profile).  ``num_processes=P`` splits the envs into ``P`` shards, the first
+stepped (stages 1-3) in this process and each other one by a worker process of its own
+(:mod:`gfb_env.envs.shards`), all at the same time: ``gymnasium.make_vec(id, num_envs=16,
+vectorization_mode="vector_entry_point", num_processes=2)`` uses two cores for the whole step.
+Results do not depend on ``P`` (tested).
 
 :meth:`GFBEnv.step` is the same three phases for one env.
 
@@ -77,9 +78,10 @@ class GFBVectorEnv(VectorEnv):
         num_threads: threads of the compiled plant stage (numba; default: every core numba sees,
             ``numba.config.NUMBA_NUM_THREADS``, itself capped by the environment variable
             ``NUMBA_NUM_THREADS``); the results do not depend on it.  See :attr:`num_threads`.  With
-            worker processes each worker uses one thread and this one is not used.
+            worker processes each worker uses one thread, and so does this one by default.
         num_processes: 1 (default): the envs live in this process; ``P > 1``: they are split into ``P``
-            contiguous shards, each stepped by a worker process of its own at the same time
+            contiguous shards, the first stepped here, each other one by a worker process of its own,
+            all at the same time
             (:mod:`gfb_env.envs.shards`; the way to use several cores for the step's Python, which
             threads cannot: see the module docstring).  The results do not depend on it.
         **kwargs: the task's keyword arguments (:class:`~gfb_env.envs.config.EnvConfig`), the same for
@@ -113,7 +115,7 @@ class GFBVectorEnv(VectorEnv):
                 f"num_processes must be an integer in [1, num_envs={num_envs}], got {num_processes!r}"
             )
         #: the compiled batch integrator of this process's envs (its ``num_threads`` may be changed at any
-        #: time); with worker processes one thread each by default (a process per core)
+        #: time); with worker processes one thread by default (a process per core)
         self._batch = BatchAdvance(1 if num_threads is None and num_processes > 1 else num_threads)
         if max_episode_steps is not None and (
             isinstance(max_episode_steps, bool)
@@ -134,8 +136,8 @@ class GFBVectorEnv(VectorEnv):
         self.num_envs = int(num_envs)
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         #: the envs' shards: contiguous index ranges, sizes differing by at most one (the larger first);
-        #: one shard (num_processes=1): the envs live in this process; otherwise each shard in a worker
-        #: process of its own (:mod:`gfb_env.envs.shards`) and this one only sends, collects and batches
+        #: shard 0 lives in this process, each other one in a worker process of its own
+        #: (:mod:`gfb_env.envs.shards`)
         p = int(num_processes)
         sizes = [self.num_envs // p + (k < self.num_envs % p) for k in range(p)]
         self._shard_ranges = [range(sum(sizes[:k]), sum(sizes[: k + 1])) for k in range(p)]
@@ -143,16 +145,13 @@ class GFBVectorEnv(VectorEnv):
         #: process's envs are :class:`~gfb_env.envs.shards.RemoteEnv` proxies
         self.envs: list[GFBEnv] = []
         self._shards: list[Shard] = []
-        if p == 1:
-            self.envs = [cls(render_mode=render_mode, **deepcopy(kwargs)) for _ in range(self.num_envs)]
-            first = self.envs[0]
-        else:
-            # one env here checks the arguments before any process starts (one line, as for p = 1)
-            # and gives the spaces; it is never stepped
-            first = cls(render_mode=render_mode, **deepcopy(kwargs))
-            first.close()
+        # shard 0 here (its envs built first: they check the arguments, in one line, before any process
+        # starts), each other shard in a worker process
+        self.envs = [cls(render_mode=render_mode, **deepcopy(kwargs)) for _ in self._shard_ranges[0]]
+        first = self.envs[0]
+        if p > 1:
             try:
-                for r in self._shard_ranges:
+                for r in self._shard_ranges[1:]:
                     shard = Shard(cls, len(r), render_mode, deepcopy(kwargs))
                     self._shards.append(shard)
                     self.envs.extend(RemoteEnv(shard, j, cls) for j in range(len(r)))
@@ -372,19 +371,19 @@ class GFBVectorEnv(VectorEnv):
         truncations into the batch; returns their infos.  No autoreset (the callers' autoreset
         semantics differ)."""
         rows = actions.tolist()  # each env's action as two Python floats (its own check is then cheap)
-        if not self._shards:
-            results = step_envs([self.envs[i] for i in stepped], [rows[i] for i in stepped], self._batch)
-            by_env = dict(zip((int(i) for i in stepped), results, strict=True))
-        else:  # every worker steps its envs at the same time; then their results are collected
-            parts = []
-            for shard, r in zip(self._shards, self._shard_ranges, strict=True):
-                ids = [int(i) for i in stepped if r.start <= i < r.stop]
-                if ids:
-                    shard.start_step([rows[i] for i in ids], [i - r.start for i in ids])
-                    parts.append((shard, ids))
-            by_env = {}
-            for shard, ids in parts:
-                by_env.update(zip(ids, shard.collect_step(), strict=True))
+        # the workers' shards are sent their actions first, then this process steps its own shard
+        # while they step theirs, then their results are collected
+        parts = []
+        for shard, r in zip(self._shards, self._shard_ranges[1:], strict=True):
+            ids = [int(i) for i in stepped if r.start <= i < r.stop]
+            if ids:
+                shard.start_step([rows[i] for i in ids], [i - r.start for i in ids])
+                parts.append((shard, ids))
+        local = [int(i) for i in stepped if i < self._shard_ranges[0].stop]
+        results = step_envs([self.envs[i] for i in local], [rows[i] for i in local], self._batch)
+        by_env = dict(zip(local, results, strict=True))
+        for shard, ids in parts:
+            by_env.update(zip(ids, shard.collect_step(), strict=True))
         for i, (obs, reward, terminated, _) in by_env.items():
             self._observations[i] = obs
             self._rewards[i] = reward
@@ -476,9 +475,8 @@ class GFBVectorEnv(VectorEnv):
 
     def close_extras(self, **kwargs: Any) -> None:
         self._batch.close()
-        if not self._shards:
-            for env in self.envs:
-                env.close()
+        for env in self.envs[: len(self._shard_ranges[0])]:
+            env.close()
         for shard in self._shards:
             shard.close()
 

@@ -29,10 +29,10 @@ import numpy as np
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_agents import ladder
 from gfb_agents.learned.evaluate import run_episode
+from gfb_experiments.regime_change_headroom import checked_factors_and_seeds
 
 TASK = "gfb_env/WhirlRecovery-v2"
 AGENT = "recovery_detect"
-DEV_STOP = 10_000
 
 
 def score_alarms(alarms: list[int], change_steps: list[int], steps: int) -> dict:
@@ -61,12 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed-offset", type=int, default=0)
     ap.add_argument("--out", default="results/task_redesign")
     a = ap.parse_args(argv)
-    try:
-        lo, hi = (float(x) for x in a.factor_range.split(","))
-    except ValueError:
-        ap.error(f"--factor-range must be f_min,f_max, got {a.factor_range!r}")
-    if not (0 <= a.seed_offset and a.seed_offset + a.seeds <= DEV_STOP and a.seeds >= 1):
-        ap.error(f"seeds must lie in the DEV range 0-{DEV_STOP - 1}")
+    lo, hi = checked_factors_and_seeds(ap, a)
     if a.rate < 0:
         ap.error(f"--rate must be >= 0, got {a.rate}")
     kw = {"damping_regime_changes": {"rate_per_s": a.rate, "factor_range": [lo, hi]}} if a.rate > 0 else {}

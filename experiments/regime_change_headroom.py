@@ -141,6 +141,18 @@ def statistics(rec: dict, seeds: list[int], reps: int = DEFAULT_REPS) -> dict:
     return out
 
 
+def checked_factors_and_seeds(ap: argparse.ArgumentParser, a: argparse.Namespace) -> tuple[float, float]:
+    """``--factor-range`` as (f_min, f_max) and the seeds checked to lie in DEV (``ap.error`` otherwise):
+    the refusals this script and :mod:`gfb_experiments.regime_change_detection` share."""
+    try:
+        lo, hi = (float(x) for x in a.factor_range.split(","))
+    except ValueError:
+        ap.error(f"--factor-range must be f_min,f_max, got {a.factor_range!r}")
+    if not (0 <= a.seed_offset and a.seed_offset + a.seeds <= DEV_STOP and a.seeds >= 1):
+        ap.error(f"seeds must lie in the DEV range 0-{DEV_STOP - 1}")
+    return lo, hi
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--task", default="gfb_env/WhirlRecovery-v2", choices=sorted(DEFAULT_AGENTS))
@@ -155,12 +167,7 @@ def main(argv: list[str] | None = None) -> int:
         "--stats-only", action="store_true", help="play nothing; the statistics of what is stored"
     )
     a = ap.parse_args(argv)
-    try:
-        lo, hi = (float(x) for x in a.factor_range.split(","))
-    except ValueError:
-        ap.error(f"--factor-range must be f_min,f_max, got {a.factor_range!r}")
-    if not (0 <= a.seed_offset and a.seed_offset + a.seeds <= DEV_STOP and a.seeds >= 1):
-        ap.error(f"seeds must lie in the DEV range 0-{DEV_STOP - 1}")
+    lo, hi = checked_factors_and_seeds(ap, a)
     agents = a.agents.split(",") if a.agents else list(DEFAULT_AGENTS[a.task])
     kw = {"damping_regime_changes": {"rate_per_s": a.rate, "factor_range": [lo, hi]}}
     gym.make(a.task, **kw).close()  # a bad configuration: one line before any episode

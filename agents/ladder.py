@@ -193,6 +193,18 @@ def _make_margin_search_1x(env) -> Policy:
     return MarginSearch1xAgent(getattr(env, "unwrapped", env))
 
 
+def _make_margin_aim_1x(env) -> Policy:
+    from gfb_agents.rules.margin_aim_1x import MarginAim1xAgent
+
+    return MarginAim1xAgent(getattr(env, "unwrapped", env))
+
+
+def _make_margin_aim_1x_05(env) -> Policy:
+    from gfb_agents.rules.margin_aim_1x import MarginAim1xAgent
+
+    return MarginAim1xAgent(getattr(env, "unwrapped", env), margin=0.005, name="margin_aim_1x_05")
+
+
 def _make_recovery(env) -> Policy:
     from gfb_agents.rules.recovery import RecoveryAgent
 
@@ -250,6 +262,18 @@ _V1_RULES = (
         (_RU2, _RUR2),
         _make_margin_search_1x,
         "margin_search plus g from the monitor's 1x vector ratios between probe dampings (v2)",
+    ),
+    (
+        "margin_aim_1x",
+        (_RU2, _RUR2),
+        _make_margin_aim_1x,
+        "margin_search_1x's estimates and damping, set-point 1 % below its posterior-mean boundary (audit)",
+    ),
+    (
+        "margin_aim_1x_05",
+        (_RU2, _RUR2),
+        _make_margin_aim_1x_05,
+        "margin_aim_1x with a 0.5 % margin",
     ),
     (
         "recovery",

@@ -49,6 +49,8 @@ def test_one_round_against_itself(tmp_path):
         "whirl_speedup_vs_against",
         "ppo_env_steps_per_s",
         "ppo_1m_steps_minutes",
+        "independent_two_over_one",
+        "two_processes_over_independent_two",
     ):
         assert math.isfinite(s[key]) and s[key] > 0, key
     assert json.loads((tmp_path / "against.json").read_text())["rounds"] == 1

@@ -154,7 +154,11 @@ def _bench(tmp_path: Path, *extra: str) -> list[str]:
         (["--env-kwargs", json.dumps({ENV: {"bogus": 1}})], "unknown environment argument 'bogus'"),
         (["--out", PROC_OUT], f"--out {PROC_OUT}: cannot write"),
         # defect 8
-        (["--agents", "bogus"], "unknown agent 'bogus'; agents of the tasks: hold, margin_search"),
+        (
+            ["--agents", "bogus"],
+            "unknown agent 'bogus'; agents of the tasks: hold, margin_aim_1x, margin_aim_1x_05, "
+            "margin_search",
+        ),
         (["--agents", "recovery"], "'recovery' plays none of the tasks gfb_env/RunUp-v2"),
         (["--agents", ""], "--agents names nothing"),
         (["--agents", "naive,,oracle_v1"], "--agents has an empty name"),

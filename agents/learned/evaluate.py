@@ -11,6 +11,10 @@
 * :func:`evaluate` plays a fixed list of seeds and :func:`summarise` reduces the results to the benchmark
   row (success rate, mean return with a 95 % confidence interval, ...).
 
+A policy trained with a slew limit on its damping command (``damping_slew`` in ``run.json`` /
+``policy.json``; :mod:`gfb_agents.learned.slew`) applies it here as in training: its damping action is a
+set-point the command follows by at most ``damping_slew`` per step, from its own previous command.
+
 Learned policies may have memory: a recurrent policy (sb3-contrib ``RecurrentPPO``) gets its state back at
 every step (``run_episode`` passes ``state`` through, as SB3's own evaluation does), and a frame-stack
 policy (``frame_stack > 1`` in ``run.json``) keeps its last observations per env, as SB3's

@@ -21,6 +21,11 @@ vector, :mod:`gfb_agents.learned.asymmetric`) and ``--algo privileged_ppo`` (the
 VecFrameStack); validation plays the deployed actor on the plain observation (the teacher: handed the
 episode's draws through ``privileged_info=True``).
 
+Realisable actuation (issue 21): ``--damping-slew R`` makes the policy's damping action a set-point that the
+command follows by at most ``R`` per control step (:mod:`gfb_agents.learned.slew`:
+:class:`~gfb_agents.learned.vec_env.DampingSlewVecEnv` in training, the same transform in the deployed
+:class:`~gfb_agents.learned.evaluate.LearnedPolicy`; ``damping_slew`` in ``run.json``; default off).
+
 Each run lives in ``<out>/seed<r>`` (``--out`` default ``runs/<env>_<algo>``, gitignored)::
 
     model.zip, vecnormalize.pkl      final model and its observation-normalisation statistics

@@ -184,15 +184,19 @@ class LearnedPolicy(Policy):
         self._args = (str(path), algo, name, which)
         self.name = name or (p.name if p.is_dir() else zip_path.stem)
         self._stack: np.ndarray | None = None  # (n_envs, frame_stack * n_obs), VecFrameStack's layout
-        self._set_damping_slew(meta.get("damping_slew"))
+        self._set_damping_slew(meta.get("damping_slew"), meta.get("damping_slew_reserve"))
 
-    def _set_damping_slew(self, rate: float | None) -> None:
-        """The slew limit of the damping command the policy was trained with (``damping_slew`` of its
-        ``run.json`` / ``policy.json``; None: none): :mod:`gfb_agents.learned.slew`, part of the policy."""
-        from gfb_agents.learned.slew import DampingSlew, check_damping_slew
+    def _set_damping_slew(self, rate: float | None, reserve: float | None = None) -> None:
+        """The slew limit of the damping command the policy was trained with (``damping_slew`` and
+        ``damping_slew_reserve`` of its ``run.json`` / ``policy.json``; None: none):
+        :mod:`gfb_agents.learned.slew`, part of the policy."""
+        from gfb_agents.learned.slew import DampingSlew, check_damping_slew, check_damping_slew_reserve
 
         self.damping_slew = check_damping_slew(rate)
-        self._slew = None if self.damping_slew is None else DampingSlew(self.damping_slew)
+        self.damping_slew_reserve = check_damping_slew_reserve(reserve, self.damping_slew)
+        self._slew = (
+            None if self.damping_slew is None else DampingSlew(self.damping_slew, self.damping_slew_reserve)
+        )
 
     @classmethod
     def from_model(
@@ -203,10 +207,11 @@ class LearnedPolicy(Policy):
         frame_stack: int = 1,
         name: str = "snapshot",
         damping_slew: float | None = None,
+        damping_slew_reserve: float | None = None,
     ) -> LearnedPolicy:
         """A policy of an in-memory model (a training run's current state, for its validation): the
         observation statistics of ``vec_normalize`` are copied (frozen), nothing is read from disk;
-        ``damping_slew``: the run's slew limit of the damping command.
+        ``damping_slew``, ``damping_slew_reserve``: the run's slew limit of the damping command.
         Not picklable (use the saved files for that)."""
         self = cls.__new__(cls)
         if algo in ACTOR_ONLY_ALGOS:
@@ -224,7 +229,7 @@ class LearnedPolicy(Policy):
             self.epsilon, self.clip_obs = float(vec_normalize.epsilon), float(vec_normalize.clip_obs)
         self._args = None
         self._stack = None
-        self._set_damping_slew(damping_slew)
+        self._set_damping_slew(damping_slew, damping_slew_reserve)
         return self
 
     @classmethod
@@ -235,6 +240,7 @@ class LearnedPolicy(Policy):
         frame_stack: int,
         algo: str = "teacher_student",
         damping_slew: float | None = None,
+        damping_slew_reserve: float | None = None,
     ) -> LearnedPolicy:
         """A policy of an in-memory :class:`~gfb_agents.learned.asymmetric.DeployedActor` (a student's
         validation) with the observation statistics of a saved ``vecnormalize.pkl``.  Not picklable."""
@@ -249,6 +255,7 @@ class LearnedPolicy(Policy):
             frame_stack=frame_stack,
             name="validation",
             damping_slew=damping_slew,
+            damping_slew_reserve=damping_slew_reserve,
         )
         self.model, self.algo = actor, algo
         return self

@@ -36,6 +36,7 @@ _KEYS = (
     "privileged",
     # the damping command's slew limit: part of the policy (LearnedPolicy applies it)
     "damping_slew",
+    "damping_slew_reserve",
     "timesteps",
     "wall_time_s",
     "env_steps_per_s",
@@ -114,7 +115,12 @@ def _export_run(run: Path, dest: Path, name: str, which: str) -> Path:
         *(
             [
                 f"* damping command slew-limited to {meta['damping_slew']:g} action units per control step "
-                "(`damping_slew`; part of the policy: `gfb_agents.learned.slew`)"
+                + (
+                    f", saving up to {meta['damping_slew_reserve']:g} of unused allowance"
+                    if meta.get("damping_slew_reserve") is not None
+                    else ""
+                )
+                + " (`damping_slew`; part of the policy: `gfb_agents.learned.slew`)"
             ]
             if meta.get("damping_slew") is not None
             else []

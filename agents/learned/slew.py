@@ -13,6 +13,16 @@ command is delivered in float32 (the action's dtype), and its rounding could lan
 such a value is moved one float32 step back toward the previous command, so the bound holds exactly in
 the float64 arithmetic ``run_episode`` measures with.
 
+With a *reserve* ``C`` (``--damping-slew-reserve C``; default none) a step that moves less than ``r`` saves
+the rest, up to ``C``, and a later step may move by ``r`` plus what is saved (a token bucket)::
+
+    a_d(k) = a_d(k-1) + clip(u(k) - a_d(k-1), -(r + s(k-1)), r + s(k-1)),
+    s(k) = clip(s(k-1) + r - |a_d(k) - a_d(k-1)|, 0, C),      s(-1) = 0,
+
+so the moves of steps ``0..k`` sum to at most ``(k + 1) r`` however the episode ends (the mean stays at
+most ``r``), while a policy that holds the damping may jump as the best rules do (they hold and jump:
+docs/agents.md).  The saved allowance is not in the observation; a policy with memory can infer it.
+
 Why a set-point and not an increment (``a_d(k) = a_d(k-1) + r u(k)``): the set-point keeps the action's
 meaning (the damping the policy wants, as for a rule and as without the limit), a level is held by
 asking for it (the increment form must output exactly 0, and a Gaussian policy's noise then walks the
@@ -45,6 +55,7 @@ __all__ = [
     "MAX_DAMPING_SLEW",
     "DAMPING_ACTION",
     "check_damping_slew",
+    "check_damping_slew_reserve",
     "slew_damping",
     "DampingSlew",
     "slewed_actions",
@@ -55,6 +66,9 @@ __all__ = [
 MAX_DAMPING_SLEW = 2.0
 #: the damping entry of the action (entry 0 is the speed)
 DAMPING_ACTION = 1
+#: with a reserve, the allowance saved per step is ``rate * (1 - _RESERVE_MARGIN)``: the saved allowance is
+#: a float64 running sum, and this keeps its rounding (and that of ``run_episode``'s sum) inside the bound
+_RESERVE_MARGIN = 1e-9
 
 
 def check_damping_slew(rate: Any) -> float | None:
@@ -70,38 +84,63 @@ def check_damping_slew(rate: Any) -> float | None:
     return float(rate)
 
 
-def slew_damping(previous: np.ndarray, target: np.ndarray, rate: float) -> np.ndarray:
+def check_damping_slew_reserve(reserve: Any, rate: float | None) -> float | None:
+    """``reserve`` as a float in ``(0, MAX_DAMPING_SLEW]`` (None: none), only with a ``rate``; one-line
+    ValueError else."""
+    if reserve is None:
+        return None
+    ok = isinstance(reserve, (int, float, np.floating, np.integer)) and not isinstance(reserve, bool)
+    if not ok or not math.isfinite(float(reserve)) or not 0.0 < float(reserve) <= MAX_DAMPING_SLEW:
+        raise ValueError(
+            f"--damping-slew-reserve (damping_slew_reserve) must be a finite number in "
+            f"(0, {MAX_DAMPING_SLEW:g}] action units, got {reserve!r}"
+        )
+    if rate is None:
+        raise ValueError("--damping-slew-reserve (damping_slew_reserve): only with --damping-slew")
+    return float(reserve)
+
+
+def slew_damping(previous: np.ndarray, target: np.ndarray, rate: float | np.ndarray) -> np.ndarray:
     """The commands ``previous + clip(target - previous, -rate, rate)`` (float32), each within ``rate``
-    of ``previous`` exactly (module docstring); ``target`` is clipped to ``[-1, 1]`` first, as the env
-    clips an action."""
+    (a number, or one per env) of ``previous`` exactly (module docstring); ``target`` is clipped to
+    ``[-1, 1]`` first, as the env clips an action."""
     p32 = np.asarray(previous, dtype=np.float32)
     p = p32.astype(np.float64)
     u = np.clip(np.asarray(target, dtype=np.float64), -1.0, 1.0)
     out = (p + np.clip(u - p, -rate, rate)).astype(np.float32)
     # float32 rounding past the limit: one float32 step back toward the previous command (which is a
     # float32 value, so the step lands between it and the exact value)
-    over = np.abs(out.astype(np.float64) - p) > rate
+    over = np.abs(out.astype(np.float64) - p) > np.asarray(rate, dtype=np.float64)
     if np.any(over):
         out[over] = np.nextafter(out[over], p32[over])
     return out
 
 
 class DampingSlew:
-    """The slew limit's state for ``n`` envs: each env's previous damping command.
+    """The slew limit's state for ``n`` envs: each env's previous damping command (and, with a
+    ``reserve``, the allowance it saved).
 
     :meth:`start` sets it from (raw) observations: their ``damping`` entry, the indicated damping at
     reset, where the actuator rests at the command (and where ``run_episode`` starts its measure);
-    :meth:`__call__` turns a batch of policy actions ``(n, 2)`` into the commands and keeps them."""
+    :meth:`__call__` turns a batch of policy actions ``(n, 2)`` into the commands and keeps them.
 
-    def __init__(self, rate: float):
+    ``reserve`` (None: none): a step that moves less than ``rate`` saves the rest, up to ``reserve``
+    action units, and a later step may move by ``rate`` plus what is saved (a token bucket).  The moves
+    of steps ``0..k`` then sum to at most ``(k + 1) rate`` whenever the episode ends -- the mean stays at
+    most ``rate`` -- while a policy that holds the damping may jump as the rules do."""
+
+    def __init__(self, rate: float, reserve: float | None = None):
         r = check_damping_slew(rate)
         if r is None:
             raise ValueError("DampingSlew needs a rate (--damping-slew)")
         self.rate = r
+        self.reserve = check_damping_slew_reserve(reserve, r)
         self.previous: np.ndarray | None = None  # (n,) float32
+        self.saved: np.ndarray | None = None  # (n,) float64: the allowance saved (with a reserve)
 
     def reset(self) -> None:
         self.previous = None
+        self.saved = None
 
     def start(self, observations: np.ndarray, which: np.ndarray | None = None) -> None:
         """New episodes for the envs ``which`` (a bool mask; None: all, and the env count is taken from
@@ -110,9 +149,11 @@ class DampingSlew:
         d = np.clip(obs[:, OBS_DAMPING].astype(np.float32), np.float32(-1.0), np.float32(1.0))
         if which is None or self.previous is None or self.previous.shape[0] != obs.shape[0]:
             self.previous = d.copy()
+            self.saved = np.zeros(d.shape[0])
             return
         w = np.asarray(which, dtype=bool)
         self.previous[w] = d[w]
+        self.saved[w] = 0.0
 
     def __call__(self, actions: np.ndarray) -> np.ndarray:
         """The commands of ``actions`` (shape ``(n, 2)``): the damping entry slewed (a float32 value), the
@@ -123,7 +164,14 @@ class DampingSlew:
         # the speed entry passes bit for bit (a float64 batch stays float64; the commands are float32)
         dtype = np.result_type(x.dtype, np.float32) if np.issubdtype(x.dtype, np.floating) else np.float32
         a = np.array(x, dtype=dtype, copy=True).reshape(self.previous.shape[0], -1)
-        a[:, DAMPING_ACTION] = slew_damping(self.previous, a[:, DAMPING_ACTION], self.rate)
+        if self.reserve is None:
+            a[:, DAMPING_ACTION] = slew_damping(self.previous, a[:, DAMPING_ACTION], self.rate)
+        else:
+            accrual = self.rate * (1.0 - _RESERVE_MARGIN)
+            new = slew_damping(self.previous, a[:, DAMPING_ACTION], accrual + self.saved)
+            moved = np.abs(new.astype(np.float64) - self.previous.astype(np.float64))
+            self.saved = np.clip(self.saved + accrual - moved, 0.0, self.reserve)
+            a[:, DAMPING_ACTION] = new
         self.previous = a[:, DAMPING_ACTION].copy()
         return a
 
@@ -154,9 +202,9 @@ class SlewLimitedPolicy(Policy):
     """Any :class:`~gfb_agents.policy.Policy` with the damping command slew-limited to ``rate`` per control
     step (its damping action read as a set-point).  A policy handed the reset info (an oracle) still is."""
 
-    def __init__(self, policy: Policy, rate: float):
+    def __init__(self, policy: Policy, rate: float, reserve: float | None = None):
         self.policy = policy
-        self.slew = DampingSlew(rate)
+        self.slew = DampingSlew(rate, reserve)
         self.name, self.kind = f"{policy.name}+slew{self.slew.rate:g}", policy.kind
 
     def reset(self) -> None:

@@ -106,9 +106,10 @@ class TeacherPolicy(PrivilegedPolicy):
         frame_stack: int = 1,
         name: str = "teacher",
         damping_slew: float | None = None,
+        damping_slew_reserve: float | None = None,
     ):
         from gfb_agents.learned.privileged import OBS_KEY, PRIVILEGED_KEY
-        from gfb_agents.learned.slew import DampingSlew, check_damping_slew
+        from gfb_agents.learned.slew import DampingSlew, check_damping_slew, check_damping_slew_reserve
 
         self.model, self.name, self.frame_stack = model, name, int(frame_stack)
         self.keys = (OBS_KEY, PRIVILEGED_KEY)
@@ -125,7 +126,10 @@ class TeacherPolicy(PrivilegedPolicy):
         # the run's slew limit of the damping command: applied in the episode loop (predict), where the
         # env gets the commands; act() gives the set-points (DAgger's labels: its envs apply the limit)
         self.damping_slew = check_damping_slew(damping_slew)
-        self._slew = None if self.damping_slew is None else DampingSlew(self.damping_slew)
+        self.damping_slew_reserve = check_damping_slew_reserve(damping_slew_reserve, self.damping_slew)
+        self._slew = (
+            None if self.damping_slew is None else DampingSlew(self.damping_slew, self.damping_slew_reserve)
+        )
 
     def normalise(self, key: str, x: np.ndarray) -> np.ndarray:
         if self.stats is None:
@@ -197,7 +201,11 @@ def load_teacher(run: str | Path) -> tuple[TeacherPolicy, dict]:
         with open(vn_p, "rb") as fh:
             vn = pickle.load(fh)
     return TeacherPolicy(
-        model, vn, int(meta.get("frame_stack", 1) or 1), damping_slew=meta.get("damping_slew")
+        model,
+        vn,
+        int(meta.get("frame_stack", 1) or 1),
+        damping_slew=meta.get("damping_slew"),
+        damping_slew_reserve=meta.get("damping_slew_reserve"),
     ), meta
 
 
@@ -374,7 +382,7 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
     if slew is not None:
         from gfb_agents.learned.vec_env import DampingSlewVecEnv
 
-        base = DampingSlewVecEnv(base, slew)
+        base = DampingSlewVecEnv(base, slew, teacher.damping_slew_reserve)
     venv = PrivilegedVecEnv(base)
     n_obs = int(venv.observation_space[OBS_KEY].shape[0])
     space = venv.action_space
@@ -438,6 +446,11 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
         "teacher_frame_stack": teacher.frame_stack,
         "teacher_timesteps": tmeta.get("timesteps"),
         **({"damping_slew": slew} if slew is not None else {}),
+        **(
+            {"damping_slew_reserve": teacher.damping_slew_reserve}
+            if teacher.damping_slew_reserve is not None
+            else {}
+        ),
     }
     for it in range(done_iters, p["iterations"]):
         beta = float(p["beta_decay"]) ** it
@@ -470,7 +483,13 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
                 loss_v = float(loss.detach())
         student.eval()
         # validation: the student as it is deployed (LearnedPolicy over the plain observation)
-        pol = LearnedPolicy.from_actor(student, out / "vecnormalize.pkl", p["history"], damping_slew=slew)
+        pol = LearnedPolicy.from_actor(
+            student,
+            out / "vecnormalize.pkl",
+            p["history"],
+            damping_slew=slew,
+            damping_slew_reserve=teacher.damping_slew_reserve,
+        )
         res = evaluate(c.env_id, pol, val_seeds, env_kwargs=c.env_kwargs)
         rets = np.array([r.episode_return for r in res])
         rec = {

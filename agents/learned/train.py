@@ -461,6 +461,7 @@ class _Session:
                 self.c.frame_stack,
                 name="validation",
                 damping_slew=self.c.damping_slew,
+                damping_slew_reserve=self.c.damping_slew_reserve,
             )
             env_kwargs = {**env_kwargs, "privileged_info": True}
         else:
@@ -471,6 +472,7 @@ class _Session:
                 self.c.frame_stack,
                 name="validation",
                 damping_slew=self.c.damping_slew,
+                damping_slew_reserve=self.c.damping_slew_reserve,
             )
         res = evaluate(self.c.env_id, pol, self.validation["seeds"], env_kwargs=env_kwargs)
         rets = np.array([r.episode_return for r in res])
@@ -640,6 +642,9 @@ class TrainConfig:
             ``(0, 2]``; None: none): the policy's damping action is a set-point that the command follows
             by at most ``r`` per step (:mod:`gfb_agents.learned.slew`), in training and in the deployed
             policy, so the benchmark's ``mean_damping_change`` is at most ``r`` by construction.
+        damping_slew_reserve: with ``damping_slew``: the unused allowance (action units, in ``(0, 2]``)
+            a step may save for a later one (a token bucket: the moves of steps ``0..k`` sum to at most
+            ``(k + 1) r``, so a policy that holds the damping may jump as the rules do); None: none.
     """
 
     algo: str
@@ -663,6 +668,7 @@ class TrainConfig:
     privileged_quantities: tuple[str, ...] = ()
     num_processes: int = 1
     damping_slew: float | None = None
+    damping_slew_reserve: float | None = None
 
     def __post_init__(self) -> None:
         algo = str(self.algo).lower()
@@ -732,9 +738,11 @@ class TrainConfig:
         if self.env_kwargs.get("privileged_info"):
             # the validation env is made from env_kwargs: it must be the public interface
             raise ValueError("env_kwargs: privileged_info is set by the training command, not here")
-        from gfb_agents.learned.slew import check_damping_slew
+        from gfb_agents.learned.slew import check_damping_slew, check_damping_slew_reserve
 
         object.__setattr__(self, "damping_slew", check_damping_slew(self.damping_slew))
+        reserve = check_damping_slew_reserve(self.damping_slew_reserve, self.damping_slew)
+        object.__setattr__(self, "damping_slew_reserve", reserve)
 
     @property
     def task(self) -> str:
@@ -746,6 +754,8 @@ class TrainConfig:
         """``RunUp-v2_ppo`` (``_fs4`` with a frame stack of 4): the default folder of the runs."""
         fs = f"_fs{self.frame_stack}" if self.frame_stack > 1 else ""
         slew = f"_slew{self.damping_slew:g}" if self.damping_slew is not None else ""
+        if self.damping_slew_reserve is not None:
+            slew += f"r{self.damping_slew_reserve:g}"
         return f"{self.env_id.split('/')[-1]}_{self.algo}{fs}{slew}"
 
     def run_dir(self) -> Path:
@@ -766,6 +776,7 @@ def _comparable(cfg: dict) -> dict:
     out["privileged_quantities"] = list(cfg.get("privileged_quantities") or [])
     # the damping command's slew limit (part of the policy); absent from earlier records: none
     out["damping_slew"] = cfg.get("damping_slew")
+    out["damping_slew_reserve"] = cfg.get("damping_slew_reserve")
     return out
 
 
@@ -901,7 +912,7 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
         # (gfb_agents.learned.slew); LearnedPolicy applies the same transform when deployed
         from gfb_agents.learned.vec_env import DampingSlewVecEnv
 
-        venv = DampingSlewVecEnv(venv, c.damping_slew)
+        venv = DampingSlewVecEnv(venv, c.damping_slew, c.damping_slew_reserve)
     if algo in PRIVILEGED_INPUT_ALGOS:
         # training only: the privileged vector beside the observation (asymmetric_ppo: the critic's
         # input; the validation env and the deployed actor get the plain observation)
@@ -1000,6 +1011,7 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
         **({"privileged": list(_privileged_names(c))} if algo in PRIVILEGED_INPUT_ALGOS else {}),
         # part of the deployed policy (LearnedPolicy reads it); absent: no slew limit
         **({"damping_slew": c.damping_slew} if c.damping_slew is not None else {}),
+        **({"damping_slew_reserve": c.damping_slew_reserve} if c.damping_slew_reserve is not None else {}),
         "timesteps": steps,
         "total_timesteps": total,
         "requested_timesteps": requested,

@@ -187,13 +187,14 @@ class DampingSlewVecEnv(VecEnvWrapper):
 
     Wraps the task's SB3 ``VecEnv`` directly (its raw observations, below :class:`PrivilegedVecEnv`,
     ``VecNormalize`` and ``VecFrameStack``); an env that ended starts its new episode from the reset
-    observation SB3 returns in its place.  ``commands``: the last batch sent to the env."""
+    observation SB3 returns in its place.  ``reserve``: the unused allowance a step may save for a later
+    one (:class:`~gfb_agents.learned.slew.DampingSlew`).  ``commands``: the last batch sent to the env."""
 
-    def __init__(self, venv: VecEnv, rate: float):
+    def __init__(self, venv: VecEnv, rate: float, reserve: float | None = None):
         if not isinstance(venv.observation_space, spaces.Box):
             raise ValueError(f"DampingSlewVecEnv wraps the raw Box observation, got {venv.observation_space}")
         super().__init__(venv)
-        self.slew = DampingSlew(rate)
+        self.slew = DampingSlew(rate, reserve)
         self.commands: np.ndarray | None = None
 
     def reset(self) -> VecEnvObs:

@@ -23,6 +23,7 @@ from gfb_agents.learned.slew import (
     DampingSlew,
     SlewLimitedPolicy,
     check_damping_slew,
+    check_damping_slew_reserve,
     slew_damping,
 )
 from gfb_agents.learned.train import TrainConfig, load_hyperparams, make_vec_env_for
@@ -83,6 +84,52 @@ def test_a_random_policy_through_the_slew_limit_moves_the_command_at_most_r_per_
     assert np.abs(indicated - a[:, 1]).max() < rate
 
 
+class _HoldAndJump(Policy):
+    """A rule's hold-and-jump: ask for the reset damping for ``hold`` steps, then for the far side."""
+
+    name = "hold-and-jump"
+
+    def __init__(self, hold: int):
+        self.hold, self.k, self.start = hold, 0, 0.0
+
+    def reset(self):
+        self.k = 0
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        if self.k == 0:
+            self.start = float(observation[OBS_DAMPING])
+        self.k += 1
+        far = -0.8 if self.start > 0 else 0.8
+        return np.float32([0.5, self.start if self.k <= self.hold else far]), state
+
+
+@pytest.mark.parametrize("policy", [_RandomPolicy(), _HoldAndJump(30)], ids=["random", "hold-and-jump"])
+def test_a_reserve_lets_a_held_command_jump_and_keeps_every_prefix_mean_within_r(policy):
+    rate, steps = 0.028, 60
+    env = _Recorder(gym.make(ENV, max_episode_steps=steps))
+    res = run_episode(env, SlewLimitedPolicy(policy, rate, reserve=1.0), seed=VALIDATION.first(1)[0])
+    a = np.array(env.actions, dtype=np.float64)[:, 1]
+    moves = np.abs(np.diff(np.r_[float(env.observations[0][OBS_DAMPING]), a]))
+    k = np.arange(1, len(moves) + 1)
+    assert np.all(np.cumsum(moves) <= k * rate)  # an episode ending at any step: mean <= r
+    assert res.damping_command_change <= rate
+    if isinstance(policy, _HoldAndJump):
+        assert moves.max() > 20 * rate  # after holding, a jump the plain slew limit would spread out
+    # the plain limit (no reserve) is the same code with nothing saved: every move at most r
+    plain = DampingSlew(rate)
+    with_reserve = DampingSlew(rate, reserve=1.0)
+    obs = np.zeros((1, 30), dtype=np.float32)
+    plain.start(obs)
+    with_reserve.start(obs)
+    for _ in range(10):  # hold 10 steps, then ask for 0.5
+        plain(np.float32([[0, 0]]))
+        with_reserve(np.float32([[0, 0]]))
+    one = float(plain(np.float32([[0, 0.5]]))[0, 1])
+    assert one <= rate and one == pytest.approx(rate, rel=1e-7)
+    eleven = float(with_reserve(np.float32([[0, 0.5]]))[0, 1])
+    assert eleven <= 11 * rate and eleven == pytest.approx(11 * rate, rel=1e-7)
+
+
 def test_the_filter_reaches_a_near_set_point_holds_it_and_rounds_inside_the_limit():
     s = DampingSlew(0.125)  # binary fractions: exact arithmetic
     obs = np.zeros((3, 30), dtype=np.float32)
@@ -115,13 +162,25 @@ def test_a_bad_slew_limit_is_one_line_naming_the_option(bad):
     with pytest.raises(ValueError, match="--damping-slew") as exc:
         TrainConfig("ppo", ENV, damping_slew=bad)
     assert "\n" not in str(exc.value)
+    with pytest.raises(ValueError, match="--damping-slew-reserve") as exc:
+        TrainConfig("ppo", ENV, damping_slew=0.1, damping_slew_reserve=bad)
+    assert "\n" not in str(exc.value)
+    with pytest.raises(ValueError, match="--damping-slew-reserve.*only with --damping-slew"):
+        check_damping_slew_reserve(1.0, None)
 
 
-@pytest.mark.parametrize("value", ["0", "-0.1", "nan", "inf", "2.5"])
-def test_the_cli_refuses_a_bad_slew_limit_with_exit_2(tmp_path, capsys, value):
-    argv = ["--algo", "ppo", "--env", ENV, "--timesteps", "16", "--damping-slew", value]
+@pytest.mark.parametrize(
+    "extra, fragment",
+    [
+        *[(["--damping-slew", v], "--damping-slew") for v in ("0", "-0.1", "nan", "inf", "2.5")],
+        (["--damping-slew", "0.1", "--damping-slew-reserve", "0"], "--damping-slew-reserve"),
+        (["--damping-slew-reserve", "1"], "--damping-slew-reserve (damping_slew_reserve): only with"),
+    ],
+)
+def test_the_cli_refuses_a_bad_slew_limit_with_exit_2(tmp_path, capsys, extra, fragment):
+    argv = ["--algo", "ppo", "--env", ENV, "--timesteps", "16", *extra]
     argv += ["--out", str(tmp_path / "exp"), "--no-progress-bar", "--no-tensorboard"]
-    _refused(train_main, argv, "--damping-slew", capsys, within_s=15.0)
+    _refused(train_main, argv, fragment, capsys, within_s=15.0)
     assert not (tmp_path / "exp").exists()
 
 
@@ -209,6 +268,8 @@ def test_ppo_trains_with_the_limit_resumes_and_refuses_another_one(tmp_path, mon
     for other in (None, 0.02):  # the limit is part of the policy: another one is another run
         with pytest.raises(ValueError, match=r"other settings \(damping_slew\)"):
             train_mod.train(_config(tmp_path, timesteps=96, damping_slew=other))
+    with pytest.raises(ValueError, match=r"other settings \(damping_slew_reserve\)"):
+        train_mod.train(_config(tmp_path, timesteps=96, damping_slew_reserve=0.5))
     assert TrainConfig("ppo", ENV, damping_slew=0.02).experiment_name == "RunUp-v2_ppo_slew0.02"
 
 
@@ -253,24 +314,27 @@ def test_every_algorithm_trains_and_validates_with_the_limit(tmp_path, monkeypat
 
 
 # ------------------------------------------------------------ the exported policy: the same commands
-def test_the_exported_policy_sends_the_commands_the_training_wrapper_sends_bit_for_bit(tmp_path):
+@pytest.mark.parametrize("reserve", [None, 0.5], ids=["slew", "slew-with-reserve"])
+def test_the_exported_policy_sends_the_commands_the_training_wrapper_sends_bit_for_bit(tmp_path, reserve):
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecFrameStack, VecNormalize
 
-    out = train_mod.train(_config(tmp_path, timesteps=32, checkpoint_freq=10_000))
+    cfg = _config(tmp_path, timesteps=32, checkpoint_freq=10_000, damping_slew_reserve=reserve)
+    out = train_mod.train(cfg)
     dest = export_policy(out, "slewed", which="final", root=tmp_path / "policies")
     info = json.loads((dest / "policy.json").read_text())
     assert info["damping_slew"] == RATE and "slew-limited" in (dest / "README.md").read_text()
+    assert info.get("damping_slew_reserve") == reserve
     steps, seed = 30, VALIDATION.first(1)[0]
     # deployed: the benchmark's episode loop over the exported files
     env = _Recorder(gym.make(ENV, max_episode_steps=steps))
     pol = LearnedPolicy(dest)
-    assert pol.damping_slew == RATE and pol.frame_stack == 2
+    assert pol.damping_slew == RATE and pol.damping_slew_reserve == reserve and pol.frame_stack == 2
     res = run_episode(env, pol, seed=seed)
     deployed = np.array(env.actions)
     # training: the run's own env stack (the native vector env, the wrapper, frozen VecNormalize, stack)
     base = make_vec_env_for(ENV, 1, seed, env_kwargs={"max_episode_steps": steps}, vec_env="native")
-    wrapper = DampingSlewVecEnv(base, RATE)
+    wrapper = DampingSlewVecEnv(base, RATE, reserve)
     vn = VecNormalize.load(str(dest / "vecnormalize.pkl"), wrapper)
     vn.training, vn.norm_reward = False, False
     venv = VecFrameStack(vn, 2)

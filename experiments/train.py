@@ -6,6 +6,11 @@
         [--n-envs K] [--frame-stack K] [--hyperparams FILE] [--env-kwargs JSON] [--eval-freq N]
         [--eval-episodes N] [--checkpoint-freq N] [--keep-checkpoints N] [--no-progress-bar]
         [--vec-env {dummy,subproc,native}] [--privileged-quantities NAME,...]
+        [--damping-slew R [--damping-slew-reserve C]]
+
+``--damping-slew R``: the policy's damping action is a set-point the command follows by at most ``R``
+action units per control step (:mod:`gfb_agents.learned.slew`; part of the deployed policy; default off);
+``--damping-slew-reserve C``: a step may also spend up to ``C`` of the allowance earlier steps left unused.
 
 ``asymmetric_ppo``: PPO whose critic also sees the episode's privileged vector (training only; the actor,
 the deployed policy, sees the observation): :mod:`gfb_agents.learned.asymmetric`.
@@ -21,6 +26,7 @@ import os
 import shlex
 import sys
 
+from gfb_agents.learned.slew import check_damping_slew, check_damping_slew_reserve
 from gfb_agents.learned.teacher_student import STUDENT_ALGO, TEACHER_ALGO
 from gfb_agents.learned.train import (
     ALGOS,
@@ -128,7 +134,26 @@ def main(argv: list[str] | None = None) -> int:
         help="asymmetric_ppo: true step quantities appended to the critic's privileged vector, e.g. "
         "whirl_amplitude,min_film_thickness (gfb_agents.learned.privileged.STEP_QUANTITIES)",
     )
+    ap.add_argument(
+        "--damping-slew",
+        type=float,
+        default=None,
+        help="slew limit of the damping command, action units per control step in (0, 2] (2: the whole "
+        "damping range): the policy's damping action becomes a set-point the command follows by at most "
+        "this much per step, in training and in the deployed policy (default: none)",
+    )
+    ap.add_argument(
+        "--damping-slew-reserve",
+        type=float,
+        default=None,
+        help="with --damping-slew: the unused allowance (action units, in (0, 2]) a step may save for a "
+        "later one, so that holding the damping buys a jump; the mean |change| stays at most R",
+    )
     a = ap.parse_args(argv)
+    try:  # before anything else: a bad limit is one line (exit 2)
+        check_damping_slew_reserve(a.damping_slew_reserve, check_damping_slew(a.damping_slew))
+    except ValueError as exc:
+        ap.error(str(exc))
     set_thread_defaults()  # single-threaded BLAS in the subproc workers (see gfb_env._threads)
     env_kwargs = None
     if a.env_kwargs:
@@ -181,6 +206,8 @@ def main(argv: list[str] | None = None) -> int:
             vec_env=a.vec_env,
             privileged_quantities=tuple(q for q in (a.privileged_quantities or "").split(",") if q),
             num_processes=a.num_processes,
+            damping_slew=a.damping_slew,
+            damping_slew_reserve=a.damping_slew_reserve,
         )
         check_runs(config, run_seeds, a.scheduler)  # everything a run would fail on, before any starts
         recs = train_seeds(
@@ -218,6 +245,12 @@ def _distill_main(ap, a, run_seeds: list[int], cmd: str) -> int:
 
     if a.teacher is None:
         ap.error(f"--algo {STUDENT_ALGO} needs --teacher RUN (a {TEACHER_ALGO} training run)")
+    if a.damping_slew is not None or a.damping_slew_reserve is not None:
+        # the student's labels are its teacher's set-points: it takes the teacher's slew limit
+        ap.error(
+            f"--damping-slew: not with --algo {STUDENT_ALGO} (the student takes its teacher's slew limit; "
+            f"train the {TEACHER_ALGO} teacher with --damping-slew)"
+        )
     for flag, bad in (
         ("--frame-stack", a.frame_stack != 1),
         ("--env-kwargs", a.env_kwargs is not None),

@@ -11,6 +11,10 @@
 * :func:`evaluate` plays a fixed list of seeds and :func:`summarise` reduces the results to the benchmark
   row (success rate, mean return with a 95 % confidence interval, ...).
 
+A policy trained with a slew limit on its damping command (``damping_slew`` in ``run.json`` /
+``policy.json``; :mod:`gfb_agents.learned.slew`) applies it here as in training: its damping action is a
+set-point the command follows by at most ``damping_slew`` per step, from its own previous command.
+
 Learned policies may have memory: a recurrent policy (sb3-contrib ``RecurrentPPO``) gets its state back at
 every step (``run_episode`` passes ``state`` through, as SB3's own evaluation does), and a frame-stack
 policy (``frame_stack > 1`` in ``run.json``) keeps its last observations per env, as SB3's
@@ -180,13 +184,34 @@ class LearnedPolicy(Policy):
         self._args = (str(path), algo, name, which)
         self.name = name or (p.name if p.is_dir() else zip_path.stem)
         self._stack: np.ndarray | None = None  # (n_envs, frame_stack * n_obs), VecFrameStack's layout
+        self._set_damping_slew(meta.get("damping_slew"), meta.get("damping_slew_reserve"))
+
+    def _set_damping_slew(self, rate: float | None, reserve: float | None = None) -> None:
+        """The slew limit of the damping command the policy was trained with (``damping_slew`` and
+        ``damping_slew_reserve`` of its ``run.json`` / ``policy.json``; None: none):
+        :mod:`gfb_agents.learned.slew`, part of the policy."""
+        from gfb_agents.learned.slew import DampingSlew, check_damping_slew, check_damping_slew_reserve
+
+        self.damping_slew = check_damping_slew(rate)
+        self.damping_slew_reserve = check_damping_slew_reserve(reserve, self.damping_slew)
+        self._slew = (
+            None if self.damping_slew is None else DampingSlew(self.damping_slew, self.damping_slew_reserve)
+        )
 
     @classmethod
     def from_model(
-        cls, model, algo: str, vec_normalize=None, frame_stack: int = 1, name: str = "snapshot"
+        cls,
+        model,
+        algo: str,
+        vec_normalize=None,
+        frame_stack: int = 1,
+        name: str = "snapshot",
+        damping_slew: float | None = None,
+        damping_slew_reserve: float | None = None,
     ) -> LearnedPolicy:
         """A policy of an in-memory model (a training run's current state, for its validation): the
-        observation statistics of ``vec_normalize`` are copied (frozen), nothing is read from disk.
+        observation statistics of ``vec_normalize`` are copied (frozen), nothing is read from disk;
+        ``damping_slew``, ``damping_slew_reserve``: the run's slew limit of the damping command.
         Not picklable (use the saved files for that)."""
         self = cls.__new__(cls)
         if algo in ACTOR_ONLY_ALGOS:
@@ -204,11 +229,18 @@ class LearnedPolicy(Policy):
             self.epsilon, self.clip_obs = float(vec_normalize.epsilon), float(vec_normalize.clip_obs)
         self._args = None
         self._stack = None
+        self._set_damping_slew(damping_slew, damping_slew_reserve)
         return self
 
     @classmethod
     def from_actor(
-        cls, actor, vec_normalize_path: str | Path | None, frame_stack: int, algo: str = "teacher_student"
+        cls,
+        actor,
+        vec_normalize_path: str | Path | None,
+        frame_stack: int,
+        algo: str = "teacher_student",
+        damping_slew: float | None = None,
+        damping_slew_reserve: float | None = None,
     ) -> LearnedPolicy:
         """A policy of an in-memory :class:`~gfb_agents.learned.asymmetric.DeployedActor` (a student's
         validation) with the observation statistics of a saved ``vecnormalize.pkl``.  Not picklable."""
@@ -216,7 +248,15 @@ class LearnedPolicy(Policy):
         if vec_normalize_path is not None and Path(vec_normalize_path).exists():
             with open(vec_normalize_path, "rb") as fh:
                 vn = pickle.load(fh)
-        self = cls.from_model(None, algo="", vec_normalize=vn, frame_stack=frame_stack, name="validation")
+        self = cls.from_model(
+            None,
+            algo="",
+            vec_normalize=vn,
+            frame_stack=frame_stack,
+            name="validation",
+            damping_slew=damping_slew,
+            damping_slew_reserve=damping_slew_reserve,
+        )
         self.model, self.algo = actor, algo
         return self
 
@@ -235,6 +275,8 @@ class LearnedPolicy(Policy):
 
     def reset(self) -> None:
         self._stack = None
+        if self._slew is not None:
+            self._slew.reset()
 
     def _stacked(self, x: np.ndarray, episode_start) -> np.ndarray:
         """SB3's ``VecFrameStack`` (channels last): the last ``frame_stack`` normalised observations side
@@ -269,7 +311,20 @@ class LearnedPolicy(Policy):
             # RecurrentPPO wants one flag per env, as an array
             n = 1 if x.ndim == 1 else x.shape[0]
             episode_start = np.broadcast_to(np.asarray(episode_start, dtype=bool), (n,)).copy()
-        return self.model.predict(x, state=state, episode_start=episode_start, deterministic=deterministic)
+        action, state = self.model.predict(
+            x, state=state, episode_start=episode_start, deterministic=deterministic
+        )
+        if self._slew is not None:
+            action = self._slewed(observation, action, episode_start)
+        return action, state
+
+    def _slewed(self, observation: np.ndarray, action: np.ndarray, episode_start) -> np.ndarray:
+        """The commands of the model's actions under the run's slew limit (the transform training applied
+        in :class:`~gfb_agents.learned.vec_env.DampingSlewVecEnv`): the previous command is this policy's
+        own, from each episode's first (raw) observation on."""
+        from gfb_agents.learned.slew import slewed_actions
+
+        return slewed_actions(self._slew, observation, action, episode_start)
 
 
 def run_dirs(agent_dir: str | Path) -> list[Path]:

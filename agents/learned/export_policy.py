@@ -34,6 +34,9 @@ _KEYS = (
     "n_envs",
     "frame_stack",
     "privileged",
+    # the damping command's slew limit: part of the policy (LearnedPolicy applies it)
+    "damping_slew",
+    "damping_slew_reserve",
     "timesteps",
     "wall_time_s",
     "env_steps_per_s",
@@ -109,6 +112,19 @@ def _export_run(run: Path, dest: Path, name: str, which: str) -> Path:
         f"wall time {meta['wall_time_s'] / 60:.1f} min"
         + (f" ({meta['env_steps_per_s']} env steps/s)" if "env_steps_per_s" in meta else "")
         + (" (stopped by Ctrl-C before the requested total)" if meta.get("interrupted") else ""),
+        *(
+            [
+                f"* damping command slew-limited to {meta['damping_slew']:g} action units per control step "
+                + (
+                    f", saving up to {meta['damping_slew_reserve']:g} of unused allowance"
+                    if meta.get("damping_slew_reserve") is not None
+                    else ""
+                )
+                + " (`damping_slew`; part of the policy: `gfb_agents.learned.slew`)"
+            ]
+            if meta.get("damping_slew") is not None
+            else []
+        ),
         f"* model selection on the validation seeds: best mean return {bv.get('mean_return', '?')} at "
         f"{bv.get('timesteps', '?')} steps (see `policy.json`)",
         "* files: "

@@ -99,8 +99,17 @@ class TeacherPolicy(PrivilegedPolicy):
 
     kind = "oracle"
 
-    def __init__(self, model, vec_normalize, frame_stack: int = 1, name: str = "teacher"):
+    def __init__(
+        self,
+        model,
+        vec_normalize,
+        frame_stack: int = 1,
+        name: str = "teacher",
+        damping_slew: float | None = None,
+        damping_slew_reserve: float | None = None,
+    ):
         from gfb_agents.learned.privileged import OBS_KEY, PRIVILEGED_KEY
+        from gfb_agents.learned.slew import DampingSlew, check_damping_slew, check_damping_slew_reserve
 
         self.model, self.name, self.frame_stack = model, name, int(frame_stack)
         self.keys = (OBS_KEY, PRIVILEGED_KEY)
@@ -114,6 +123,13 @@ class TeacherPolicy(PrivilegedPolicy):
         self.clip = float(getattr(vec_normalize, "clip_obs", 10.0))
         self._stacks = {k: _Stack(self.frame_stack) for k in self.keys}
         self._vec: np.ndarray | None = None
+        # the run's slew limit of the damping command: applied in the episode loop (predict), where the
+        # env gets the commands; act() gives the set-points (DAgger's labels: its envs apply the limit)
+        self.damping_slew = check_damping_slew(damping_slew)
+        self.damping_slew_reserve = check_damping_slew_reserve(damping_slew_reserve, self.damping_slew)
+        self._slew = (
+            None if self.damping_slew is None else DampingSlew(self.damping_slew, self.damping_slew_reserve)
+        )
 
     def normalise(self, key: str, x: np.ndarray) -> np.ndarray:
         if self.stats is None:
@@ -132,6 +148,8 @@ class TeacherPolicy(PrivilegedPolicy):
     def reset(self) -> None:
         self._stacks = {k: _Stack(self.frame_stack) for k in self.keys}
         self._vec = None
+        if self._slew is not None:
+            self._slew.reset()
 
     def observe_reset_info(self, info: Mapping[str, Any]) -> None:
         from gfb_agents.learned.privileged import episode_vector
@@ -146,7 +164,12 @@ class TeacherPolicy(PrivilegedPolicy):
             raise RuntimeError("TeacherPolicy.predict before observe_reset_info")
         obs = np.asarray(observation)[None, :]
         start = np.array([bool(np.all(episode_start)) if episode_start is not None else False])
-        return self.act(obs, self._vec, start)[0], state
+        a = self.act(obs, self._vec, start)
+        if self._slew is not None:
+            from gfb_agents.learned.slew import slewed_actions
+
+            a = slewed_actions(self._slew, obs, a, start)
+        return a[0], state
 
 
 def _teacher_files(run: Path) -> tuple[Path, Path | None]:
@@ -177,7 +200,13 @@ def load_teacher(run: str | Path) -> tuple[TeacherPolicy, dict]:
     if vn_p is not None:
         with open(vn_p, "rb") as fh:
             vn = pickle.load(fh)
-    return TeacherPolicy(model, vn, int(meta.get("frame_stack", 1) or 1)), meta
+    return TeacherPolicy(
+        model,
+        vn,
+        int(meta.get("frame_stack", 1) or 1),
+        damping_slew=meta.get("damping_slew"),
+        damping_slew_reserve=meta.get("damping_slew_reserve"),
+    ), meta
 
 
 @dataclass(frozen=True)
@@ -348,7 +377,13 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
     th.manual_seed(c.seed + session * seeds_mod.MAX_TRAIN_RUNS)
     rng = np.random.default_rng(c.seed + session * seeds_mod.MAX_TRAIN_RUNS)
     env_seed = seeds_mod.train_env_seed(c.seed, 0, session)
-    venv = PrivilegedVecEnv(make_vec_env_for(c.env_id, p["n_envs"], env_seed, None, c.env_kwargs, c.vec_env))
+    base = make_vec_env_for(c.env_id, p["n_envs"], env_seed, None, c.env_kwargs, c.vec_env)
+    slew = teacher.damping_slew  # the teacher's labels are set-points under its slew limit: the student's too
+    if slew is not None:
+        from gfb_agents.learned.vec_env import DampingSlewVecEnv
+
+        base = DampingSlewVecEnv(base, slew, teacher.damping_slew_reserve)
+    venv = PrivilegedVecEnv(base)
     n_obs = int(venv.observation_space[OBS_KEY].shape[0])
     space = venv.action_space
     student = DeployedActor(p["history"] * n_obs, p["hidden"], "Tanh", space.low, space.high)
@@ -410,6 +445,12 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
         "teacher": str(c.teacher),
         "teacher_frame_stack": teacher.frame_stack,
         "teacher_timesteps": tmeta.get("timesteps"),
+        **({"damping_slew": slew} if slew is not None else {}),
+        **(
+            {"damping_slew_reserve": teacher.damping_slew_reserve}
+            if teacher.damping_slew_reserve is not None
+            else {}
+        ),
     }
     for it in range(done_iters, p["iterations"]):
         beta = float(p["beta_decay"]) ** it
@@ -442,7 +483,13 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
                 loss_v = float(loss.detach())
         student.eval()
         # validation: the student as it is deployed (LearnedPolicy over the plain observation)
-        pol = LearnedPolicy.from_actor(student, out / "vecnormalize.pkl", p["history"])
+        pol = LearnedPolicy.from_actor(
+            student,
+            out / "vecnormalize.pkl",
+            p["history"],
+            damping_slew=slew,
+            damping_slew_reserve=teacher.damping_slew_reserve,
+        )
         res = evaluate(c.env_id, pol, val_seeds, env_kwargs=c.env_kwargs)
         rets = np.array([r.episode_return for r in res])
         rec = {

@@ -21,6 +21,11 @@ vector, :mod:`gfb_agents.learned.asymmetric`) and ``--algo privileged_ppo`` (the
 VecFrameStack); validation plays the deployed actor on the plain observation (the teacher: handed the
 episode's draws through ``privileged_info=True``).
 
+Realisable actuation (issue 21): ``--damping-slew R`` makes the policy's damping action a set-point that the
+command follows by at most ``R`` per control step (:mod:`gfb_agents.learned.slew`:
+:class:`~gfb_agents.learned.vec_env.DampingSlewVecEnv` in training, the same transform in the deployed
+:class:`~gfb_agents.learned.evaluate.LearnedPolicy`; ``damping_slew`` in ``run.json``; default off).
+
 Each run lives in ``<out>/seed<r>`` (``--out`` default ``runs/<env>_<algo>``, gitignored)::
 
     model.zip, vecnormalize.pkl      final model and its observation-normalisation statistics
@@ -450,11 +455,24 @@ class _Session:
             # the teacher acts on the privileged vector: handed the hidden draws by the opt-in channel
             from gfb_agents.learned.teacher_student import TeacherPolicy
 
-            pol = TeacherPolicy(model, model.get_vec_normalize_env(), self.c.frame_stack, name="validation")
+            pol = TeacherPolicy(
+                model,
+                model.get_vec_normalize_env(),
+                self.c.frame_stack,
+                name="validation",
+                damping_slew=self.c.damping_slew,
+                damping_slew_reserve=self.c.damping_slew_reserve,
+            )
             env_kwargs = {**env_kwargs, "privileged_info": True}
         else:
             pol = LearnedPolicy.from_model(
-                model, self.c.algo, model.get_vec_normalize_env(), self.c.frame_stack, name="validation"
+                model,
+                self.c.algo,
+                model.get_vec_normalize_env(),
+                self.c.frame_stack,
+                name="validation",
+                damping_slew=self.c.damping_slew,
+                damping_slew_reserve=self.c.damping_slew_reserve,
             )
         res = evaluate(self.c.env_id, pol, self.validation["seeds"], env_kwargs=env_kwargs)
         rets = np.array([r.episode_return for r in res])
@@ -620,6 +638,13 @@ class TrainConfig:
             (:func:`make_vec_env_for`).
         num_processes: the native vector env's worker processes (1: none; :mod:`gfb_env.envs.shards`).
             The results do not depend on it, so a run may resume with another value.
+        damping_slew: the slew limit ``r`` of the damping command (action units per control step, in
+            ``(0, 2]``; None: none): the policy's damping action is a set-point that the command follows
+            by at most ``r`` per step (:mod:`gfb_agents.learned.slew`), in training and in the deployed
+            policy, so the benchmark's ``mean_damping_change`` is at most ``r`` by construction.
+        damping_slew_reserve: with ``damping_slew``: the unused allowance (action units, in ``(0, 2]``)
+            a step may save for a later one (a token bucket: the moves of steps ``0..k`` sum to at most
+            ``(k + 1) r``, so a policy that holds the damping may jump as the rules do); None: none.
     """
 
     algo: str
@@ -642,6 +667,8 @@ class TrainConfig:
     vec_env: str = "native"
     privileged_quantities: tuple[str, ...] = ()
     num_processes: int = 1
+    damping_slew: float | None = None
+    damping_slew_reserve: float | None = None
 
     def __post_init__(self) -> None:
         algo = str(self.algo).lower()
@@ -711,6 +738,11 @@ class TrainConfig:
         if self.env_kwargs.get("privileged_info"):
             # the validation env is made from env_kwargs: it must be the public interface
             raise ValueError("env_kwargs: privileged_info is set by the training command, not here")
+        from gfb_agents.learned.slew import check_damping_slew, check_damping_slew_reserve
+
+        object.__setattr__(self, "damping_slew", check_damping_slew(self.damping_slew))
+        reserve = check_damping_slew_reserve(self.damping_slew_reserve, self.damping_slew)
+        object.__setattr__(self, "damping_slew_reserve", reserve)
 
     @property
     def task(self) -> str:
@@ -721,7 +753,10 @@ class TrainConfig:
     def experiment_name(self) -> str:
         """``RunUp-v2_ppo`` (``_fs4`` with a frame stack of 4): the default folder of the runs."""
         fs = f"_fs{self.frame_stack}" if self.frame_stack > 1 else ""
-        return f"{self.env_id.split('/')[-1]}_{self.algo}{fs}"
+        slew = f"_slew{self.damping_slew:g}" if self.damping_slew is not None else ""
+        if self.damping_slew_reserve is not None:
+            slew += f"r{self.damping_slew_reserve:g}"
+        return f"{self.env_id.split('/')[-1]}_{self.algo}{fs}{slew}"
 
     def run_dir(self) -> Path:
         return self.out if self.out is not None else Path("runs") / self.experiment_name / f"seed{self.seed}"
@@ -739,6 +774,9 @@ def _comparable(cfg: dict) -> dict:
     out = {k: cfg.get(k) for k in keep}
     # asymmetric_ppo's critic input; absent from the records of runs before it (the same as none)
     out["privileged_quantities"] = list(cfg.get("privileged_quantities") or [])
+    # the damping command's slew limit (part of the policy); absent from earlier records: none
+    out["damping_slew"] = cfg.get("damping_slew")
+    out["damping_slew_reserve"] = cfg.get("damping_slew_reserve")
     return out
 
 
@@ -869,6 +907,12 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
     venv = make_vec_env_for(
         env_id, n_envs, env_seed, monitor_dir, train_kwargs, vec_env=c.vec_env, num_processes=c.num_processes
     )
+    if c.damping_slew is not None:
+        # on the raw observations and the env's own actions: the policy's damping action is a set-point
+        # (gfb_agents.learned.slew); LearnedPolicy applies the same transform when deployed
+        from gfb_agents.learned.vec_env import DampingSlewVecEnv
+
+        venv = DampingSlewVecEnv(venv, c.damping_slew, c.damping_slew_reserve)
     if algo in PRIVILEGED_INPUT_ALGOS:
         # training only: the privileged vector beside the observation (asymmetric_ppo: the critic's
         # input; the validation env and the deployed actor get the plain observation)
@@ -965,6 +1009,9 @@ def train(config: TrainConfig, command: str | None = None) -> Path:
         "n_envs": n_envs,
         "frame_stack": c.frame_stack,
         **({"privileged": list(_privileged_names(c))} if algo in PRIVILEGED_INPUT_ALGOS else {}),
+        # part of the deployed policy (LearnedPolicy reads it); absent: no slew limit
+        **({"damping_slew": c.damping_slew} if c.damping_slew is not None else {}),
+        **({"damping_slew_reserve": c.damping_slew_reserve} if c.damping_slew_reserve is not None else {}),
         "timesteps": steps,
         "total_timesteps": total,
         "requested_timesteps": requested,

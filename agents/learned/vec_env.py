@@ -34,9 +34,10 @@ from gfb_agents.learned.privileged import (
     episode_vector,
     privileged_names,
 )
+from gfb_agents.learned.slew import DampingSlew
 from gfb_env.envs.vector import GFBVectorEnv
 
-__all__ = ["GFBSB3VecEnv", "PrivilegedVecEnv"]
+__all__ = ["GFBSB3VecEnv", "PrivilegedVecEnv", "DampingSlewVecEnv"]
 
 
 class GFBSB3VecEnv(VecEnv):
@@ -177,3 +178,36 @@ class PrivilegedVecEnv(VecEnvWrapper):
                 }
                 self._fill(i, reset_infos[i])  # the new episode's draws, its reset info
         return self._dict(obs), rewards, dones, infos
+
+
+class DampingSlewVecEnv(VecEnvWrapper):
+    """A ``VecEnv`` wrapper that slew-limits the damping command (:mod:`gfb_agents.learned.slew`): the
+    policy's damping action is a set-point, the env gets ``a_d(k-1) + clip(u - a_d(k-1), -rate, rate)``
+    (the speed action unchanged), ``a_d(-1)`` being each episode's reset observation's damping.
+
+    Wraps the task's SB3 ``VecEnv`` directly (its raw observations, below :class:`PrivilegedVecEnv`,
+    ``VecNormalize`` and ``VecFrameStack``); an env that ended starts its new episode from the reset
+    observation SB3 returns in its place.  ``reserve``: the unused allowance a step may save for a later
+    one (:class:`~gfb_agents.learned.slew.DampingSlew`).  ``commands``: the last batch sent to the env."""
+
+    def __init__(self, venv: VecEnv, rate: float, reserve: float | None = None):
+        if not isinstance(venv.observation_space, spaces.Box):
+            raise ValueError(f"DampingSlewVecEnv wraps the raw Box observation, got {venv.observation_space}")
+        super().__init__(venv)
+        self.slew = DampingSlew(rate, reserve)
+        self.commands: np.ndarray | None = None
+
+    def reset(self) -> VecEnvObs:
+        obs = self.venv.reset()
+        self.slew.start(obs)
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self.commands = self.slew(actions)
+        self.venv.step_async(self.commands)
+
+    def step_wait(self) -> VecEnvStepReturn:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        if np.any(dones):
+            self.slew.start(obs, np.asarray(dones, dtype=bool))
+        return obs, rewards, dones, infos

@@ -456,9 +456,10 @@ class TrapezoidalIntegrator:
             # every phase of a harmonic whirl (v = -A omega sin, a = -A omega^2 cos), so call ends at
             # different phases of a decaying orbit do not read as growth
             r0 = self.model.layout.rotor_offset
-            fr = st.f[r0 : r0 + 4]
+            # the four entries as floats: the same squares (libm's pow, as numpy's scalars take) and sums
+            f0, f1, f2, f3 = st.f[r0 : r0 + 4].tolist()
             w2 = (WHIRL_FREQUENCY_RATIO * max(lam_t, 1e-3)) ** 2
-            motion = math.sqrt(float(fr[0] ** 2 + fr[1] ** 2 + (fr[2] ** 2 + fr[3] ** 2) / w2))
+            motion = math.sqrt(f0**2 + f1**2 + (f2**2 + f3**2) / w2)
             window = self._growth.window_after(st.growth_window, t, motion, (lam_t, dw_t))
         self._stepper = new = st.advanced(
             clock,

@@ -796,8 +796,18 @@ class GFBEnv(gym.Env):
             amp = 0.5 * max(_span(xr), _span(er)) if math.isfinite(_span(xr) + _span(er)) else 0.0
         if not math.isfinite(min_h):
             min_h = ep.model.min_film_thickness(self._plant_state())
-        out = StepOutcome(lam0, integ.bearing_number, integ.foil_damping, amp, min_h, touchdown, failure)
-        return out, PlantTrace(xr, er, orbit, steps, orbit_tau)
+        # StepOutcome(...) and PlantTrace(...) of these values, each instance dict filled at once (the
+        # frozen dataclasses' __init__ set one field at a time; there is nothing to check)
+        out = object.__new__(StepOutcome)
+        out.__dict__.update(
+            bearing_number_start=lam0, bearing_number=integ.bearing_number, foil_damping=integ.foil_damping,
+            whirl_amplitude=amp, min_film_thickness=min_h, touchdown=touchdown, solver_failure=failure,
+        )  # fmt: skip
+        trace = object.__new__(PlantTrace)
+        trace.__dict__.update(
+            xi_range=xr, eta_range=er, orbit=orbit, integrator_steps=steps, orbit_tau=orbit_tau
+        )
+        return out, trace
 
     def _schedule_shocks(self) -> None:
         """Random base shocks starting in this control step (drawn from ``self.np_random``; none and no

@@ -431,10 +431,12 @@ class GFBVectorEnv(VectorEnv):
         by_env = dict(zip(local, results, strict=True))
         for shard, ids in parts:
             by_env.update(zip(ids, shard.collect_step(), strict=True))
-        for i, (obs, reward, terminated, _) in by_env.items():
-            self._observations[i] = obs
-            self._rewards[i] = reward
-            self._terminations[i] = terminated
+        if by_env:  # every env's row of each batch array written in one assignment
+            ids = list(by_env)
+            obs, rewards, terminated, _ = zip(*by_env.values(), strict=True)
+            self._observations[ids] = obs
+            self._rewards[ids] = rewards
+            self._terminations[ids] = terminated
         infos = [by_env[int(i)][3] for i in stepped]
         self._elapsed_steps[stepped] += 1
         if self.max_episode_steps is not None:

@@ -339,6 +339,7 @@ class MonitorInterface:
         ce = ep.command
         steps = env.objective.episode_steps
         layout = env.observation_layout
+        probe_x, probe_y = ep.probe_readings_um.tolist()  # (float of each entry)
         info = {
             "step": ep.step,
             "steps_left": steps - ep.step,
@@ -352,8 +353,8 @@ class MonitorInterface:
             "reference_speed_rpm": float(env.reference_speed_rpm),
             # the actuator's position feedback: the damping it believes it sets (the gain is hidden)
             "damping_indicated": env.actions.damping_from_action(float(obs[layout.damping])),
-            "probe_x_um": float(ep.probe_readings_um[0]),
-            "probe_y_um": float(ep.probe_readings_um[1]),
+            "probe_x_um": probe_x,
+            "probe_y_um": probe_y,
             "action_applied": ep.last_action.copy(),
             "action_sanitised": ep.action_sanitised,
             "touchdown": ep.termination is TerminationReason.TOUCHDOWN,
@@ -378,10 +379,15 @@ class MonitorInterface:
             out["valid"] = False
             return out
         valid = r.valid
-        out = {}
-        for keys, p in zip(_READING_KEYS_BY_PROBE, (r.x.__dict__, r.y.__dict__), strict=True):
-            for key, f in zip(keys, _READING_FIELDS, strict=True):
-                out[key] = float(p[f]) if (valid or f == "direct_um_pp") else 0.0
+        px, py = r.x.__dict__, r.y.__dict__
+        if valid:  # every field of both probes, in _READING_KEYS' order
+            out = dict(
+                zip(_READING_KEYS, map(float, [*map(px.get, _READING_FIELDS), *map(py.get, _READING_FIELDS)]))
+            )
+        else:  # the direct pk-pk only (the filtered values are not OK)
+            out = dict.fromkeys(_READING_KEYS, 0.0)
+            for keys, p in zip(_READING_KEYS_BY_PROBE, (px, py), strict=True):
+                out[keys[0]] = float(p["direct_um_pp"])
         out["valid"] = bool(valid)
         return out
 

@@ -287,7 +287,8 @@ class GFBEnv(gym.Env):
     def _clock(self) -> tuple[float, float, float, float]:
         """``(step_tau, control_step_s, record_interval, record_interval_s)`` of the episode's bearing,
         computed once per bearing (the step reads them ~6 times)."""
-        b = self._clock_bearing
+        ep = self._ep
+        b = ep.bearing if ep is not None else self.nominal_bearing  # (_clock_bearing, inline)
         cached = self._clock_values
         if cached is not None and cached[0] is b:
             return cached[1]

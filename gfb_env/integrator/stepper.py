@@ -180,6 +180,7 @@ class TrapezoidalIntegrator:
             raise ValueError(f"options must be an IntegratorOptions, got {type(options).__name__}")
         self._options = options
         self._loop_options = LoopOptions.head_of(options)  # every call appends its max_steps
+        self._last_loop_options: tuple | None = None  # (head, max_steps, LoopOptions) of the last call
         # the step limit at a settled operating point (opt-in, controller.WhirlGrowthControl)
         self._growth = options.whirl_growth_control
         if self._growth is not None:
@@ -407,7 +408,14 @@ class TrapezoidalIntegrator:
                 head = self._settled_loop_options
             elif st.step > self.options.max_step:  # back from a settled limit: the proposal too
                 st = self._stepper = dataclasses.replace(st, step=self.options.max_step)
-        options = LoopOptions(*head, int(max_steps))
+        # the loop's options of (head, max_steps), kept from the last call (a namedtuple of 16 fields
+        # built anew every control step otherwise; both are immutable)
+        last = self._last_loop_options
+        if last is not None and last[0] is head and last[1] is max_steps:
+            options = last[2]
+        else:
+            options = LoopOptions(*head, int(max_steps))
+            self._last_loop_options = (head, max_steps, options)
         span = float(tau_end) - t0
         forcing, rate = self._forcing_of_call(st, span, lam0, lam1)
         return PreparedCall(

@@ -1132,11 +1132,13 @@ def _whirl_amplitude(tau: np.ndarray, xi: np.ndarray, eta: np.ndarray) -> float:
         return float("nan")
     add = np.add.reduce
     t = tau - add(tau) / n
-    denom = float(t @ t)
+    # (ndarray.dot of two vectors: the BLAS dot that @ calls, without the matmul ufunc's layer)
+    dot = t.dot
+    denom = float(dot(t))
     if denom <= 0:
         return float("nan")
-    xd = xi - add(xi) / n - t * (float(t @ xi) / denom)
-    ed = eta - add(eta) / n - t * (float(t @ eta) / denom)
+    xd = xi - add(xi) / n - t * (float(dot(xi)) / denom)
+    ed = eta - add(eta) / n - t * (float(dot(eta)) / denom)
     xd *= xd
     ed *= ed
     xd += ed

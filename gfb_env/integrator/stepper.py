@@ -483,7 +483,21 @@ class TrapezoidalIntegrator:
         # one copy of the samples, column by column (each column contiguous; the probes a view of it)
         cols = rb.T.copy()
         tau_s = cols[0]
-        th = (tau_s - t0) / span if span > 0 else np.ones_like(tau_s)
+        # the schedule at the samples, lam0 + (lam1 - lam0) th (th >= 0 finite); where the call holds
+        # a positive value that is lam0 + 0.0 = lam0 exactly, filled without the arithmetic
+        lam_held, dw_held = lam1 == lam0 and lam0 > 0.0, dw1 == dw0 and dw0 > 0.0
+        if not (lam_held and dw_held):
+            th = (tau_s - t0) / span if span > 0 else np.ones_like(tau_s)
+        if lam_held:
+            lam_s = np.empty(len(tau_s))
+            lam_s.fill(lam0)
+        else:
+            lam_s = lam0 + (lam1 - lam0) * th
+        if dw_held:
+            dw_s = np.empty(len(tau_s))
+            dw_s.fill(dw0)
+        else:
+            dw_s = dw0 + (dw1 - dw0) * th
         traj = Trajectory(
             tau=tau_s,
             xi=cols[1],
@@ -492,8 +506,8 @@ class TrapezoidalIntegrator:
             eta_dot=cols[4],
             min_film_thickness=cols[-1],
             probes=cols[5:-1].T,
-            bearing_number=lam0 + (lam1 - lam0) * th,
-            foil_damping=dw0 + (dw1 - dw0) * th,
+            bearing_number=lam_s,
+            foil_damping=dw_s,
         )
         event = None
         if code == _TOUCHDOWN:

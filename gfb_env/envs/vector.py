@@ -284,9 +284,9 @@ class GFBVectorEnv(VectorEnv):
             kinds = {tuple(map(type, info.values())) for _, info in entries}
             if len(kinds) == 1:  # every env's values of one type per key (the common case)
                 return self._batch_infos_of_kind(entries, keys, kinds.pop())
-            # the common case: every env reports the same keys in the same order: the values of all
-            # keys of one numeric type converted in one call (rows of one array, each exactly the
-            # array _add_info builds), one block of masks
+            # every env reports the same keys in the same order, but some key's values differ in
+            # type between envs: the values of all keys of one numeric type converted in one call
+            # (rows of one array, each exactly the array _add_info builds), one block of masks
             columns = list(zip(*(info.values() for _, info in entries), strict=True))
             arrays: list[Any] = [None] * len(keys)
             groups: dict[type, list[int]] = {}

@@ -59,13 +59,7 @@ from gfb_env.envs.synchronous_plant import SuperposedResponse
 from gfb_env.envs.units import (
     N_ROTOR_OBS,
     OBS_DAMPING,
-    OBS_ETA,
-    OBS_ETA_DOT,
-    OBS_ETA_EXTENT,
     OBS_SPEED,
-    OBS_XI,
-    OBS_XI_DOT,
-    OBS_XI_EXTENT,
     ActionMap,
     ObservationLayout,
 )
@@ -248,6 +242,8 @@ class GFBEnv(gym.Env):
             cfg.control_interval, cfg.nominal_bearing if clock == "seconds" else None
         )
         self._clock_values: tuple[BearingParameters, tuple[float, float, float, float]] | None = None
+        #: (bearing, its :meth:`bearing_number_limits`): the command reads them every step
+        self._limits_values: tuple[BearingParameters, tuple[float, float]] | None = None
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         low, high = self.observation_layout.bounds()
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
@@ -291,7 +287,8 @@ class GFBEnv(gym.Env):
     def _clock(self) -> tuple[float, float, float, float]:
         """``(step_tau, control_step_s, record_interval, record_interval_s)`` of the episode's bearing,
         computed once per bearing (the step reads them ~6 times)."""
-        b = self._clock_bearing
+        ep = self._ep
+        b = ep.bearing if ep is not None else self.nominal_bearing  # (_clock_bearing, inline)
         cached = self._clock_values
         if cached is not None and cached[0] is b:
             return cached[1]
@@ -622,9 +619,10 @@ class GFBEnv(gym.Env):
         stepped alone.  Until :meth:`finish_step` takes the plan no other plan can be made (and no
         snapshot taken); a plant that raised (a programming error: numerical failures are results)
         leaves the plan pending until :meth:`reset` or :meth:`set_state`."""
-        if self._integ is None or self._ep is None:
+        ep = self._ep
+        if self._integ is None or ep is None:
             raise RuntimeError("call reset() before step()")
-        if self._ep.done:
+        if ep.termination is not None:  # (Episode.done)
             raise RuntimeError("the episode has ended; call reset()")
         if self._pending is not None:
             raise RuntimeError("a step is planned and not finished: call finish_step(plan, result) first")
@@ -638,26 +636,23 @@ class GFBEnv(gym.Env):
             self._sync.before_step(integ, kick)
         call: PreparedCall | None = None
         failure: Exception | None = None
+        step_tau, _, record_interval, _ = self._clock()
         try:
             call = integ.prepare(
-                integ.tau + self.step_tau, bearing_number, foil_damping, self.record_interval,
+                integ.tau + step_tau, bearing_number, foil_damping, record_interval,
                 self._probe_idx, DEFAULT_MAX_STEPS,
             )  # fmt: skip
         except NUMERICAL_FAILURES as exc:
             failure = exc
-        plan = StepPlan(
-            action=a,
-            action_sanitised=sanitised,
-            disturbance=kick,
-            bearing_number_start=lam0,
-            bearing_number=bearing_number,
-            foil_damping=foil_damping,
-            integrator=integ,
-            call=call,
-            failure=failure,
-            tau_start=tau0,
-            rotation_angle_start=theta0,
-        )
+        # StepPlan(...) of these fields (exactly one of call and failure is set here, as its check
+        # asks), its instance dict filled at once: the frozen dataclass's __init__ sets its 11 fields
+        # one object.__setattr__ at a time, every step
+        plan = object.__new__(StepPlan)
+        plan.__dict__.update(
+            action=a, action_sanitised=sanitised, disturbance=kick, bearing_number_start=lam0,
+            bearing_number=bearing_number, foil_damping=foil_damping, integrator=integ, call=call,
+            failure=failure, tau_start=tau0, rotation_angle_start=theta0,
+        )  # fmt: skip
         self._pending = plan
         return plan
 
@@ -702,13 +697,19 @@ class GFBEnv(gym.Env):
         state moves to the step's end)."""
         ep = self._ep
         b = ep.bearing
+        step_tau, step_s, _, _ = self._clock()
+        limits = self._limits_values
+        if limits is None or limits[0] is not b:
+            limits = self._limits_values = (b, self.bearing_number_limits(b))
+        # the entries as Python floats: the same arithmetic as on numpy's float64 scalars, cheaper
+        a_speed, a_damping = a.tolist()
         lam1 = self.motor.bearing_number_at_step_end(
-            self._integ.bearing_number, a[0], b, self.step_tau, self.bearing_number_limits(b)
+            self._integ.bearing_number, a_speed, b, step_tau, limits[1]
         )
-        commanded = self.actions.damping_from_action(a[1])
+        commanded = self.actions.damping_from_action(a_damping)
         if not self.config.damping_regime_changes.is_off:
             self._change_regimes()
-        ep.actuator = self.damping_actuator.step(ep.actuator, commanded, self.control_step_s)
+        ep.actuator = self.damping_actuator.step(ep.actuator, commanded, step_s)
         return lam1, ep.actuator.foil_damping
 
     def _change_regimes(self) -> None:
@@ -796,15 +797,25 @@ class GFBEnv(gym.Env):
             amp = 0.5 * max(_span(xr), _span(er)) if math.isfinite(_span(xr) + _span(er)) else 0.0
         if not math.isfinite(min_h):
             min_h = ep.model.min_film_thickness(self._plant_state())
-        out = StepOutcome(lam0, integ.bearing_number, integ.foil_damping, amp, min_h, touchdown, failure)
-        return out, PlantTrace(xr, er, orbit, steps, orbit_tau)
+        # StepOutcome(...) and PlantTrace(...) of these values, each instance dict filled at once (the
+        # frozen dataclasses' __init__ set one field at a time; there is nothing to check)
+        out = object.__new__(StepOutcome)
+        out.__dict__.update(
+            bearing_number_start=lam0, bearing_number=integ.bearing_number, foil_damping=integ.foil_damping,
+            whirl_amplitude=amp, min_film_thickness=min_h, touchdown=touchdown, solver_failure=failure,
+        )  # fmt: skip
+        trace = object.__new__(PlantTrace)
+        trace.__dict__.update(
+            xi_range=xr, eta_range=er, orbit=orbit, integrator_steps=steps, orbit_tau=orbit_tau
+        )
+        return out, trace
 
     def _schedule_shocks(self) -> None:
         """Random base shocks starting in this control step (drawn from ``self.np_random``; none and no
         draw without shock arrivals), handed to the integrator as half-sine pulses."""
         integ, ep, b = self._integ, self._ep, self._ep.bearing
         t0 = b.seconds(integ.tau)
-        events = self.config.shock_arrivals.draw(self.np_random, t0, t0 + self.control_step_s)
+        events = self.config.shock_arrivals.draw(self.np_random, t0, t0 + self._clock()[1])
         for e in events:
             shock = HalfSineShock.from_physical(b, e.time_s, e.peak_g, e.duration_ms, e.direction_deg)
             # tau -> s -> tau may round below the current time by an ulp
@@ -880,8 +891,9 @@ class GFBEnv(gym.Env):
         return self._finish_observation(raw), info
 
     def _finish_observation(self, raw: np.ndarray) -> np.ndarray:
-        """NaN/inf -> 0, clipped to the observation space, float32 (elementwise)."""
-        obs = np.array(raw, dtype=np.float64)
+        """NaN/inf -> 0, clipped to the observation space, float32 (elementwise).  ``raw``: a float64
+        array of the caller's own (both callers pass the fresh raw observation), cleaned in place."""
+        obs = raw if type(raw) is np.ndarray and raw.dtype == np.float64 else np.array(raw, dtype=np.float64)
         # what np.nan_to_num(nan=0, posinf=0, neginf=0) gives, in two ufunc calls (a third of its cost)
         np.copyto(obs, 0.0, where=~np.isfinite(obs))
         # np.clip's values for finite entries (what is left), by its two ufuncs without its Python layer
@@ -891,13 +903,15 @@ class GFBEnv(gym.Env):
 
     def _raw_observation(self) -> np.ndarray:
         ep, s = self._ep, self._plant_state()
-        xi, eta, xi_dot, eta_dot = ep.model.layout.rotor(s)
+        # the rotor's entries as Python floats (the same products as numpy's scalars give), the six
+        # written in one assignment (OBS_XI .. OBS_ETA_EXTENT are 0 .. 5)
+        xi, eta, xi_dot, eta_dot = ep.model.layout.rotor(s).tolist()
         n = N_ROTOR_OBS + self.n_pressure_probes
         obs = np.zeros(n, dtype=np.float64)
-        obs[OBS_XI], obs[OBS_ETA] = xi * ep.position_scale, eta * ep.position_scale
-        obs[OBS_XI_DOT], obs[OBS_ETA_DOT] = xi_dot * ep.velocity_scale, eta_dot * ep.velocity_scale
-        obs[OBS_XI_EXTENT] = _span(ep.xi_range) * ep.position_scale
-        obs[OBS_ETA_EXTENT] = _span(ep.eta_range) * ep.position_scale
+        ps, vs = ep.position_scale, ep.velocity_scale
+        obs[:OBS_SPEED] = (
+            xi * ps, eta * ps, xi_dot * vs, eta_dot * vs, _span(ep.xi_range) * ps, _span(ep.eta_range) * ps
+        )  # fmt: skip
         obs[N_ROTOR_OBS:] = s[self._probe_idx]
         self._add_sensor_errors(obs, xi, eta)
         if self.observation_noise > 0:
@@ -953,18 +967,16 @@ class GFBEnv(gym.Env):
         nb = self.nominal_bearing
         cnom_um = nb.clearance_m * 1e6
         t = nb.time_scale_s
-        # entry by entry: what the arrays' elementwise operations give, without fancy indexing
+        # each entry's error as a float (what the arrays' elementwise operations give), added to the six
+        # entries OBS_XI .. OBS_ETA_EXTENT (0 .. 5) in one in-place add: the same sums, one ufunc call
         (px, py), (vx, vy), (ex, ey) = (
             err.position_um.tolist(),
             err.velocity_um_per_s.tolist(),
             err.extent_um.tolist(),
         )
-        obs[OBS_XI] += px / cnom_um
-        obs[OBS_ETA] += py / cnom_um
-        obs[OBS_XI_DOT] += vx * t / cnom_um
-        obs[OBS_ETA_DOT] += vy * t / cnom_um
-        obs[OBS_XI_EXTENT] += ex / cnom_um
-        obs[OBS_ETA_EXTENT] += ey / cnom_um
+        obs[:OBS_SPEED] += (
+            px / cnom_um, py / cnom_um, vx * t / cnom_um, vy * t / cnom_um, ex / cnom_um, ey / cnom_um
+        )  # fmt: skip
 
     def _info(self) -> dict:
         ep, integ, model = self._ep, self._integ, self._ep.model
@@ -1120,11 +1132,13 @@ def _whirl_amplitude(tau: np.ndarray, xi: np.ndarray, eta: np.ndarray) -> float:
         return float("nan")
     add = np.add.reduce
     t = tau - add(tau) / n
-    denom = float(t @ t)
+    # (ndarray.dot of two vectors: the BLAS dot that @ calls, without the matmul ufunc's layer)
+    dot = t.dot
+    denom = float(dot(t))
     if denom <= 0:
         return float("nan")
-    xd = xi - add(xi) / n - t * (float(t @ xi) / denom)
-    ed = eta - add(eta) / n - t * (float(t @ eta) / denom)
+    xd = xi - add(xi) / n - t * (float(dot(xi)) / denom)
+    ed = eta - add(eta) / n - t * (float(dot(eta)) / denom)
     xd *= xd
     ed *= ed
     xd += ed

@@ -99,6 +99,8 @@ MONITOR_ENTRIES = (
 #: the bounds of :data:`MONITOR_ENTRIES` (pk-pk as the envelope's, rms half of it, cos/sin, ratio, flag)
 _LOW = (0.0, 0.0, 0.0, 0.0, -1.0, -1.0, -1.0, -1.0, 0.0, 0.0, 0.0, 0.0)
 _HIGH = (EXTENT_BOUND,) * 4 + (1.0,) * 4 + (0.5 * EXTENT_BOUND,) * 2 + (1.0, 1.0)
+#: the monitor's entries after the direct pk-pk when the record is too short for the filters (0, the flag too)
+_NOT_VALID = (0.0,) * (len(MONITOR_ENTRIES) - 2)
 #: samples of one control step in ``info["probe_samples"]`` (the envs record 120 per step)
 SAMPLES_PER_STEP = 120
 #: the monitor's reading in ``info["monitor"]`` (per probe; the noise statistics and the revolutions are
@@ -281,23 +283,30 @@ class MonitorInterface:
             except ValueError:  # a record too short or odd for the monitor (a step that ended early)
                 st.reading = None
         r = st.reading
-        out = np.zeros(len(MONITOR_ENTRIES))
         if r is None:
-            return out
+            return np.zeros(len(MONITOR_ENTRIES))
+        # the entries as floats, converted in one call (in MONITOR_ENTRIES' order)
         cnom_um = env.nominal_bearing.clearance_m * 1e6
-        out[0], out[1] = r.x.direct_um_pp / cnom_um, r.y.direct_um_pp / cnom_um
+        px, py = r.x, r.y
         if not r.valid:
-            return out
-        out[2], out[3] = r.x.synchronous_um_pp / cnom_um, r.y.synchronous_um_pp / cnom_um
-        for k, p in ((4, r.x), (6, r.y)):
+            return np.array((px.direct_um_pp / cnom_um, py.direct_um_pp / cnom_um, *_NOT_VALID), dtype=float)
+        phase = []
+        for p in (px, py):
             if p.synchronous_um_pp > 0:
                 lag = math.radians(p.synchronous_phase_lag_deg)
-                out[k], out[k + 1] = math.cos(lag), math.sin(lag)
-        out[8], out[9] = r.x.subsynchronous_um_rms / cnom_um, r.y.subsynchronous_um_rms / cnom_um
-        dominant = r.x if r.x.subsynchronous_um_rms >= r.y.subsynchronous_um_rms else r.y
-        out[10] = dominant.subsynchronous_ratio
-        out[11] = 1.0
-        return out
+                phase += (math.cos(lag), math.sin(lag))
+            else:
+                phase += (0.0, 0.0)
+        dominant = px if px.subsynchronous_um_rms >= py.subsynchronous_um_rms else py
+        return np.array(
+            (
+                px.direct_um_pp / cnom_um, py.direct_um_pp / cnom_um,
+                px.synchronous_um_pp / cnom_um, py.synchronous_um_pp / cnom_um, *phase,
+                px.subsynchronous_um_rms / cnom_um, py.subsynchronous_um_rms / cnom_um,
+                dominant.subsynchronous_ratio, 1.0,
+            ),
+            dtype=float,
+        )  # fmt: skip
 
     # ---- emit ---------------------------------------------------------------------------------
     def emit(self, env: GFBEnv) -> tuple[np.ndarray, dict]:
@@ -330,6 +339,7 @@ class MonitorInterface:
         ce = ep.command
         steps = env.objective.episode_steps
         layout = env.observation_layout
+        probe_x, probe_y = ep.probe_readings_um.tolist()  # (float of each entry)
         info = {
             "step": ep.step,
             "steps_left": steps - ep.step,
@@ -343,8 +353,8 @@ class MonitorInterface:
             "reference_speed_rpm": float(env.reference_speed_rpm),
             # the actuator's position feedback: the damping it believes it sets (the gain is hidden)
             "damping_indicated": env.actions.damping_from_action(float(obs[layout.damping])),
-            "probe_x_um": float(ep.probe_readings_um[0]),
-            "probe_y_um": float(ep.probe_readings_um[1]),
+            "probe_x_um": probe_x,
+            "probe_y_um": probe_y,
             "action_applied": ep.last_action.copy(),
             "action_sanitised": ep.action_sanitised,
             "touchdown": ep.termination is TerminationReason.TOUCHDOWN,
@@ -369,10 +379,15 @@ class MonitorInterface:
             out["valid"] = False
             return out
         valid = r.valid
-        out = {}
-        for keys, p in zip(_READING_KEYS_BY_PROBE, (r.x.__dict__, r.y.__dict__), strict=True):
-            for key, f in zip(keys, _READING_FIELDS, strict=True):
-                out[key] = float(p[f]) if (valid or f == "direct_um_pp") else 0.0
+        px, py = r.x.__dict__, r.y.__dict__
+        if valid:  # every field of both probes, in _READING_KEYS' order
+            out = dict(
+                zip(_READING_KEYS, map(float, [*map(px.get, _READING_FIELDS), *map(py.get, _READING_FIELDS)]))
+            )
+        else:  # the direct pk-pk only (the filtered values are not OK)
+            out = dict.fromkeys(_READING_KEYS, 0.0)
+            for keys, p in zip(_READING_KEYS_BY_PROBE, (px, py), strict=True):
+                out[keys[0]] = float(p["direct_um_pp"])
         out["valid"] = bool(valid)
         return out
 

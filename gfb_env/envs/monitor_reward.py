@@ -147,7 +147,7 @@ class PublicRewardConfig:
         put(self, "indices", {k: int(self.indices[k]) for k in _ENTRIES})
 
 
-def _at(obs: np.ndarray, config: PublicRewardConfig, name: str) -> float:
+def _at(obs: np.ndarray | list[float], config: PublicRewardConfig, name: str) -> float:
     return float(obs[config.indices[name]])
 
 
@@ -184,6 +184,8 @@ def step_terms(
     ``terminal``: the final step's verdict (``certified``, ``is_success``, ``termination_reason``) or
     None before the end."""
     w = config.reward
+    # the entries read below as Python floats at once (float(obs[i]) of each, one conversion)
+    obs = obs.tolist() if type(obs) is np.ndarray and obs.ndim == 1 else obs
     p = speed_progress(obs, config)
     window.append(p)
     del window[: -config.hold_steps]

@@ -268,11 +268,10 @@ class SuperposedResponse:
             h0 = self._film[1] if self._film[0] is x0 else self.solver.film_response(x0)
             h1 = self.solver.film_response(self.x)
             self._film = (self.x, h1)
-            i_min = int(self.solver.model.film_thickness(integ.state).argmin())
+            i_min = int(self.solver.model.film_thickness(s1).argmin())  # (s1: the state, unforced)
             self.deviation = self._whirl_amplitude(tr.tau, tr.xi, tr.eta)
             # the 1x added to every sample in one compiled call (superpose_reference: the numpy of it)
-            rotor = np.empty((4, n))
-            rotor[0], rotor[1], rotor[2], rotor[3] = tr.xi, tr.eta, tr.xi_dot, tr.eta_dot
+            rotor = np.array((tr.xi, tr.eta, tr.xi_dot, tr.eta_dot))  # (4, n), one copy
             out_rotor, h, probes = np.empty((4, n)), np.empty(n), np.empty(tr.probes.shape)
             ranges = np.empty(5)
             superpose_kernel(

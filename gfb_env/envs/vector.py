@@ -173,6 +173,8 @@ class GFBVectorEnv(VectorEnv):
         self._autoreset_envs = np.zeros(n, dtype=np.bool_)
         self._elapsed_steps = np.zeros(n, dtype=np.int64)
         self._needs_reset = True
+        #: :meth:`_batch_infos_of_kind`'s plans, by (keys, value types)
+        self._info_plans: dict[tuple, tuple] = {}
 
     # ------------------------------------------------------------------------------------------
     def reset(
@@ -279,9 +281,12 @@ class GFBVectorEnv(VectorEnv):
         idx = [int(i) for i, _ in entries]
         keys = tuple(entries[0][1]) if entries else ()
         if idx == list(range(n)) and all(tuple(info) == keys for _, info in entries):
-            # the common case: every env reports the same keys in the same order: the values of all
-            # keys of one numeric type converted in one call (rows of one array, each exactly the
-            # array _add_info builds), one block of masks
+            kinds = {tuple(map(type, info.values())) for _, info in entries}
+            if len(kinds) == 1:  # every env's values of one type per key (the common case)
+                return self._batch_infos_of_kind(entries, keys, kinds.pop())
+            # every env reports the same keys in the same order, but some key's values differ in
+            # type between envs: the values of all keys of one numeric type converted in one call
+            # (rows of one array, each exactly the array _add_info builds), one block of masks
             columns = list(zip(*(info.values() for _, info in entries), strict=True))
             arrays: list[Any] = [None] * len(keys)
             groups: dict[type, list[int]] = {}
@@ -327,6 +332,48 @@ class GFBVectorEnv(VectorEnv):
             mask = np.zeros(n, dtype=np.bool_)
             mask[ids] = True
             out[f"_{key}"] = mask
+        return out
+
+    def _batch_infos_of_kind(
+        self, entries: list[tuple[int, dict]], keys: tuple[str, ...], kind: tuple[type, ...]
+    ) -> dict[str, Any]:
+        """:meth:`_batch_infos` of the envs ``0 .. n-1`` whose infos all have the keys ``keys`` and the
+        value types ``kind`` (one tuple per env compared, instead of a set of types per key): the same
+        arrays.  What each key becomes depends on its key and type only, so that plan is made once per
+        (keys, types) and kept."""
+        plans = self._info_plans
+        plan = plans.get((keys, kind))
+        if plan is None:
+            groups: dict[type, list[int]] = {}
+            nested, other = [], []
+            for pos, (key, t) in enumerate(zip(keys, kind, strict=True)):
+                if key != "final_obs" and (t in (int, float, bool) or issubclass(t, np.number)):
+                    groups.setdefault(t, []).append(pos)
+                elif key != "final_obs" and t is dict:
+                    nested.append(pos)
+                else:
+                    other.append(pos)
+            plan = (tuple(groups.items()), tuple(nested), tuple(other), tuple(f"_{k}" for k in keys))
+            if len(plans) >= 64:  # (bounded: a task's infos take a handful of kinds)
+                plans.clear()
+            plans[(keys, kind)] = plan
+        groups_of_type, nested, other, mask_keys = plan
+        n = self.num_envs
+        columns = list(zip(*(info.values() for _, info in entries), strict=True))
+        arrays: list[Any] = [None] * len(keys)
+        for t, positions in groups_of_type:
+            block = np.array([columns[p] for p in positions], dtype=t)
+            for p, row in zip(positions, block, strict=True):
+                arrays[p] = row
+        for p in nested:
+            arrays[p] = self._batch_infos(list(enumerate(columns[p])))
+        for p in other:
+            arrays[p] = self._info_array(keys[p], list(range(n)), list(columns[p]))
+        masks = np.ones((len(keys), n), dtype=np.bool_)
+        out: dict[str, Any] = {}
+        for key, mask_key, array, mask in zip(keys, mask_keys, arrays, masks, strict=True):
+            out[key] = array
+            out[mask_key] = mask
         return out
 
     def _add_infos_one_by_one(self, entries: list[tuple[int, dict]]) -> dict[str, Any]:
@@ -384,10 +431,12 @@ class GFBVectorEnv(VectorEnv):
         by_env = dict(zip(local, results, strict=True))
         for shard, ids in parts:
             by_env.update(zip(ids, shard.collect_step(), strict=True))
-        for i, (obs, reward, terminated, _) in by_env.items():
-            self._observations[i] = obs
-            self._rewards[i] = reward
-            self._terminations[i] = terminated
+        if by_env:  # every env's row of each batch array written in one assignment
+            ids = list(by_env)
+            obs, rewards, terminated, _ = zip(*by_env.values(), strict=True)
+            self._observations[ids] = obs
+            self._rewards[ids] = rewards
+            self._terminations[ids] = terminated
         infos = [by_env[int(i)][3] for i in stepped]
         self._elapsed_steps[stepped] += 1
         if self.max_episode_steps is not None:

@@ -180,6 +180,7 @@ class TrapezoidalIntegrator:
             raise ValueError(f"options must be an IntegratorOptions, got {type(options).__name__}")
         self._options = options
         self._loop_options = LoopOptions.head_of(options)  # every call appends its max_steps
+        self._last_loop_options: tuple | None = None  # (head, max_steps, LoopOptions) of the last call
         # the step limit at a settled operating point (opt-in, controller.WhirlGrowthControl)
         self._growth = options.whirl_growth_control
         if self._growth is not None:
@@ -407,7 +408,14 @@ class TrapezoidalIntegrator:
                 head = self._settled_loop_options
             elif st.step > self.options.max_step:  # back from a settled limit: the proposal too
                 st = self._stepper = dataclasses.replace(st, step=self.options.max_step)
-        options = LoopOptions(*head, int(max_steps))
+        # the loop's options of (head, max_steps), kept from the last call (a namedtuple of 16 fields
+        # built anew every control step otherwise; both are immutable)
+        last = self._last_loop_options
+        if last is not None and last[0] is head and last[1] is max_steps:
+            options = last[2]
+        else:
+            options = LoopOptions(*head, int(max_steps))
+            self._last_loop_options = (head, max_steps, options)
         span = float(tau_end) - t0
         forcing, rate = self._forcing_of_call(st, span, lam0, lam1)
         return PreparedCall(
@@ -456,9 +464,10 @@ class TrapezoidalIntegrator:
             # every phase of a harmonic whirl (v = -A omega sin, a = -A omega^2 cos), so call ends at
             # different phases of a decaying orbit do not read as growth
             r0 = self.model.layout.rotor_offset
-            fr = st.f[r0 : r0 + 4]
+            # the four entries as floats: the same squares (libm's pow, as numpy's scalars take) and sums
+            f0, f1, f2, f3 = st.f[r0 : r0 + 4].tolist()
             w2 = (WHIRL_FREQUENCY_RATIO * max(lam_t, 1e-3)) ** 2
-            motion = math.sqrt(float(fr[0] ** 2 + fr[1] ** 2 + (fr[2] ** 2 + fr[3] ** 2) / w2))
+            motion = math.sqrt(f0**2 + f1**2 + (f2**2 + f3**2) / w2)
             window = self._growth.window_after(st.growth_window, t, motion, (lam_t, dw_t))
         self._stepper = new = st.advanced(
             clock,
@@ -474,7 +483,21 @@ class TrapezoidalIntegrator:
         # one copy of the samples, column by column (each column contiguous; the probes a view of it)
         cols = rb.T.copy()
         tau_s = cols[0]
-        th = (tau_s - t0) / span if span > 0 else np.ones_like(tau_s)
+        # the schedule at the samples, lam0 + (lam1 - lam0) th (th >= 0 finite); where the call holds
+        # a positive value that is lam0 + 0.0 = lam0 exactly, filled without the arithmetic
+        lam_held, dw_held = lam1 == lam0 and lam0 > 0.0, dw1 == dw0 and dw0 > 0.0
+        if not (lam_held and dw_held):
+            th = (tau_s - t0) / span if span > 0 else np.ones_like(tau_s)
+        if lam_held:
+            lam_s = np.empty(len(tau_s))
+            lam_s.fill(lam0)
+        else:
+            lam_s = lam0 + (lam1 - lam0) * th
+        if dw_held:
+            dw_s = np.empty(len(tau_s))
+            dw_s.fill(dw0)
+        else:
+            dw_s = dw0 + (dw1 - dw0) * th
         traj = Trajectory(
             tau=tau_s,
             xi=cols[1],
@@ -483,8 +506,8 @@ class TrapezoidalIntegrator:
             eta_dot=cols[4],
             min_film_thickness=cols[-1],
             probes=cols[5:-1].T,
-            bearing_number=lam0 + (lam1 - lam0) * th,
-            foil_damping=dw0 + (dw1 - dw0) * th,
+            bearing_number=lam_s,
+            foil_damping=dw_s,
         )
         event = None
         if code == _TOUCHDOWN:

@@ -207,6 +207,18 @@ class VibrationMonitor:
         put(self, "ratio_scan_step", step)
         put(self, "min_revolutions", positive("min_revolutions", self.min_revolutions))
         put(self, "keyphasor_angle_deg", finite("keyphasor_angle_deg", self.keyphasor_angle_deg))
+        # the kernel's arguments that only the configuration fixes (not a field: measure reads them
+        # every control step instead of recomputing them from the band's ratios)
+        ratios, ratios_scan = _ratios(self.subsynchronous_band_ratio, int(k), step)
+        put(
+            self,
+            "_kernel_constants",
+            (
+                math.radians(self.keyphasor_angle_deg), self.min_revolutions, float(ratios[0]),
+                float(ratios[1] - ratios[0]) if len(ratios) > 1 else 0.0, len(ratios),
+                float(ratios_scan[0]), self.ratio_scan_step, len(ratios_scan),
+            ),
+        )  # fmt: skip
 
     @property
     def band_ratios(self) -> np.ndarray:
@@ -245,25 +257,21 @@ class VibrationMonitor:
         Raises ``ValueError`` (naming the argument) for mismatched lengths, non-finite values, fewer than
         :attr:`min_samples` samples, times not increasing or a rotation too fast for the sampling."""
         # the checks run in the kernel; where it finds fault (or angles to unwrap), numpy's checks judge
-        t, x, y = _floats(time_s), _floats(x_um), _floats(y_um)
-        theta = _floats(rotation_angle_rad)
+        asarray = np.asarray
+        t, x, y = asarray(time_s, dtype=float), asarray(x_um, dtype=float), asarray(y_um, dtype=float)
+        theta = asarray(rotation_angle_rad, dtype=float)
         n = len(t)
         if not (t.ndim == x.ndim == y.ndim == theta.ndim == 1 and n == len(x) == len(y) == len(theta)) or (
-            n < self.min_samples
+            n < 2 * (_N_NUISANCE + 2 * self.subsynchronous_frequencies)  # (min_samples)
         ):
             t, x, y, theta, sigma, n = self._checked(time_s, x_um, y_um, rotation_angle_rad, noise_um)
-        sigma = nonnegative("noise_um", noise_um)
-        ratios, ratios_scan = _ratios(
-            self.subsynchronous_band_ratio, self.subsynchronous_frequencies, self.ratio_scan_step
-        )
-        k = len(ratios)
-        band_dr = float(ratios[1] - ratios[0]) if k > 1 else 0.0
+        # (a finite float >= 0 passes nonnegative() unchanged: checked by its type first)
+        sigma = noise_um if type(noise_um) is float and 0.0 <= noise_um < math.inf else None
+        if sigma is None:
+            sigma = nonnegative("noise_um", noise_um)
         out = np.empty((2, _kernels.N_FIELDS))
         kin = np.empty(4)
-        args = (
-            sigma, math.radians(self.keyphasor_angle_deg), self.min_revolutions, float(ratios[0]), band_dr, k,
-            float(ratios_scan[0]), self.ratio_scan_step, len(ratios_scan), out, kin,
-        )  # fmt: skip
+        args = (sigma, *self._kernel_constants, out, kin)
         status = _kernels.measure_kernel(t, x, y, theta, *args)
         if status == _kernels.BAD_RECORD:
             t, x, y, theta, sigma, n = self._checked(time_s, x_um, y_um, rotation_angle_rad, noise_um)
@@ -449,10 +457,6 @@ def _kinematics(t: np.ndarray, theta: np.ndarray) -> tuple[float, float, float, 
     sweep = float(theta[-1] - theta[0])
     omega = sweep / duration  # mean running speed, rad/s
     return duration, omega, omega * 60.0 / (2.0 * math.pi), sweep / (2.0 * math.pi)
-
-
-def _floats(v: np.ndarray) -> np.ndarray:
-    return np.asarray(v, dtype=float)
 
 
 def _series(name: str, v: np.ndarray, n: int | None = None) -> np.ndarray:

@@ -490,6 +490,7 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
             damping_slew=slew,
             damping_slew_reserve=teacher.damping_slew_reserve,
         )
+        wall_at_validation = wall_before + time.perf_counter() - t0
         res = evaluate(c.env_id, pol, val_seeds, env_kwargs=c.env_kwargs)
         rets = np.array([r.episode_return for r in res])
         rec = {
@@ -502,6 +503,8 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
             "std_return": float(rets.std()),
             "success_rate": float(np.mean([r.success for r in res])),
             "mean_damping_change": float(np.mean([r.damping_command_change for r in res])),
+            "wall_time_s": round(wall_at_validation, 2),
+            "returns": [float(x) for x in rets],
         }
         validation["history"].append(rec)
         if validation["best"] is None or rec["mean_return"] > validation["best"]["mean_return"]:

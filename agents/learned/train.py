@@ -483,6 +483,10 @@ class _Session:
             "success_rate": float(np.mean([r.success for r in res])),
             "touchdowns": int(sum(r.touchdown for r in res)),
             "mean_damping_change": float(np.mean([r.damping_command_change for r in res])),
+            # for learning curves against wall time (the run's wall time so far, this validation
+            # excluded) and for statistics over the episodes of one validation
+            "wall_time_s": round(self.wall() - (time.perf_counter() - t), 2),
+            "returns": [float(x) for x in rets],
         }
         self.validation["history"].append(rec)
         best = self.validation["best"]

@@ -8,7 +8,7 @@ export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
-.PHONY: venv demo test test-slow lint format bench bench-env agents-benchmark agents-benchmark-v1 clean
+.PHONY: venv demo test test-slow lint format bench bench-env agents-benchmark agents-benchmark-v1 learned-v2 learning-curves-v2 clean
 
 venv: $(STAMP)
 
@@ -61,6 +61,38 @@ agents-benchmark: $(STAMP)
 agents-benchmark-v1: $(STAMP)
 	$(BIN)/python -m gfb_experiments.benchmark_agents --split test --episodes 100 --n-jobs 2 \
 		--tasks gfb_env/RunUp-v1,gfb_env/RunUpRandomized-v1,gfb_env/WhirlRecovery-v1 --out results/benchmark_v1
+
+# issue 21's training campaign on the v2 ids (docs/agents.md, "The v2 training campaign"): per task PPO and
+# asymmetric PPO with a 4-frame stack (5 seeds x 1M), a privileged teacher (1M) and its DAgger student (5
+# seeds), SAC (5 seeds x 300k), every damping command slew-limited to 3x the best rule's mean change.
+# Many hours on 2 cores: RESUMABLE, rerun `make learned-v2` and every unfinished run continues from its
+# checkpoint, finished ones are skipped.  Runs go to runs/ (not committed); learning-curves-v2 draws them.
+TRAIN := $(BIN)/python -m gfb_experiments.train --no-tensorboard --no-progress-bar --n-jobs 2 \
+	--eval-episodes 20 --eval-freq 50000 --checkpoint-freq 50000
+SLEW_RunUpRandomized-v2 := 0.027
+SLEW_RunUp-v2 := 0.028
+SLEW_WhirlRecovery-v2 := 0.0058
+define campaign
+	$(TRAIN) --algo ppo --frame-stack 4 --env gfb_env/$(1) --damping-slew $(SLEW_$(1)) --seeds 2-6 \
+		--timesteps 1000000 --out runs/v2/$(1)_ppo_fs4
+	$(TRAIN) --algo asymmetric_ppo --frame-stack 4 --env gfb_env/$(1) --damping-slew $(SLEW_$(1)) \
+		--seeds 2-6 --timesteps 1000000 --out runs/v2/$(1)_asymmetric_ppo_fs4
+	$(TRAIN) --algo privileged_ppo --env gfb_env/$(1) --damping-slew $(SLEW_$(1)) --seeds 0 \
+		--timesteps 1000000 --out runs/v2/$(1)_teacher
+	$(TRAIN) --algo teacher_student --teacher runs/v2/$(1)_teacher/seed0 --seeds 0-4 \
+		--out runs/v2/$(1)_student
+	$(TRAIN) --algo sac --env gfb_env/$(1) --damping-slew $(SLEW_$(1)) --seeds 0-4 --timesteps 300000 \
+		--out runs/v2/$(1)_sac
+endef
+learned-v2: $(STAMP)
+	$(call campaign,RunUpRandomized-v2)
+	$(call campaign,RunUp-v2)
+	$(call campaign,WhirlRecovery-v2)
+
+# the curves of whatever the campaign has trained so far (validation seeds; results/learning_curves_v2)
+learning-curves-v2: $(STAMP)
+	$(BIN)/python -m gfb_experiments.learning_curves $(wildcard runs/v2/RunUpRandomized-v2_*) \
+		--rules margin_aim_1x_05,margin_search_1x --out results/learning_curves_v2/RunUpRandomized-v2
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache

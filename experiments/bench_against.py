@@ -163,13 +163,17 @@ def check_checkout(path: Path) -> Path:
     return path
 
 
+def _child(links: Path, args: dict) -> tuple[list[str], dict]:
+    """The command line and environment of one benchmark child on ``links``' checkout."""
+    env = {**os.environ, "PYTHONPATH": str(links), "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+    return [sys.executable, "-c", CHILD, json.dumps(args)], env
+
+
 def _run(links: Path, args: dict) -> dict:
     if args["kind"] == "native_x2":
         return _run_pair(links, {**args, "kind": "native"})
-    env = {**os.environ, "PYTHONPATH": str(links), "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-    out = subprocess.run(
-        [sys.executable, "-c", CHILD, json.dumps(args)], env=env, capture_output=True, text=True, check=False
-    )
+    cmd, env = _child(links, args)
+    out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
     if out.returncode != 0:
         raise RuntimeError(f"benchmark child ({args['kind']}) failed:\n{out.stderr[-2000:]}")
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -180,10 +184,11 @@ def _run_pair(links: Path, args: dict) -> dict:
     yardstick for two cores (what two unrelated processes get: shared caches, memory bandwidth, a
     virtual machine's scheduling, the clock at two busy cores), against which ``num_processes=2``'s
     gain is judged: a sharded env cannot beat it."""
-    env = {**os.environ, "PYTHONPATH": str(links), "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-    cmd = [sys.executable, "-c", CHILD, json.dumps(args)]
-    procs = [subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)]
-    procs.append(subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+    cmd, env = _child(links, args)
+    procs = [
+        subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for _ in range(2)
+    ]
     results = []
     for p in procs:
         stdout, stderr = p.communicate()

@@ -71,17 +71,22 @@ DAMPING_ACTION = 1
 _RESERVE_MARGIN = 1e-9
 
 
+def _action_units(value: Any, field: str, what: str) -> float:
+    """``value`` as a float in ``(0, MAX_DAMPING_SLEW]``; a one-line ValueError naming ``field`` else."""
+    ok = isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool)
+    if not ok or not math.isfinite(float(value)) or not 0.0 < float(value) <= MAX_DAMPING_SLEW:
+        raise ValueError(
+            f"{field} must be a finite number in (0, {MAX_DAMPING_SLEW:g}] action units{what}, got {value!r}"
+        )
+    return float(value)
+
+
 def check_damping_slew(rate: Any) -> float | None:
     """``rate`` as a float in ``(0, MAX_DAMPING_SLEW]`` (None: no slew limit); one-line ValueError else."""
     if rate is None:
         return None
-    ok = isinstance(rate, (int, float, np.floating, np.integer)) and not isinstance(rate, bool)
-    if not ok or not math.isfinite(float(rate)) or not 0.0 < float(rate) <= MAX_DAMPING_SLEW:
-        raise ValueError(
-            f"--damping-slew (damping_slew) must be a finite number in (0, {MAX_DAMPING_SLEW:g}] action "
-            f"units per control step ({MAX_DAMPING_SLEW:g} is the whole damping range), got {rate!r}"
-        )
-    return float(rate)
+    what = f" per control step ({MAX_DAMPING_SLEW:g} is the whole damping range)"
+    return _action_units(rate, "--damping-slew (damping_slew)", what)
 
 
 def check_damping_slew_reserve(reserve: Any, rate: float | None) -> float | None:
@@ -89,15 +94,10 @@ def check_damping_slew_reserve(reserve: Any, rate: float | None) -> float | None
     ValueError else."""
     if reserve is None:
         return None
-    ok = isinstance(reserve, (int, float, np.floating, np.integer)) and not isinstance(reserve, bool)
-    if not ok or not math.isfinite(float(reserve)) or not 0.0 < float(reserve) <= MAX_DAMPING_SLEW:
-        raise ValueError(
-            f"--damping-slew-reserve (damping_slew_reserve) must be a finite number in "
-            f"(0, {MAX_DAMPING_SLEW:g}] action units, got {reserve!r}"
-        )
+    value = _action_units(reserve, "--damping-slew-reserve (damping_slew_reserve)", "")
     if rate is None:
         raise ValueError("--damping-slew-reserve (damping_slew_reserve): only with --damping-slew")
-    return float(reserve)
+    return value
 
 
 def slew_damping(previous: np.ndarray, target: np.ndarray, rate: float | np.ndarray) -> np.ndarray:

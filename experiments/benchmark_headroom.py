@@ -13,18 +13,34 @@ IQM(rule) on the IQM columns' scale and mean(oracle) - mean(rule) on the mean co
 from one bootstrap over the evaluation seeds shared by both agents
 (:func:`gfb_experiments.benchmark_stats.paired_headroom`).  A headroom claim needs both lower bounds >= 0.2
 (issue 19; ``established``).
+
+It also writes ``benchmark_learned_vs_rule.csv`` (issue 21) where a task has learned agents: per learned
+agent, its normalised score minus the best rule's, IQM and mean, with the same paired bootstrap (a learned
+agent's per-seed score is the mean over its training seeds first, :func:`paired_headroom`).  Every learned
+agent gets its row (none is chosen on the test seeds); ``beats_rule`` is the issue's claim, both lower
+bounds above 0.
 """
 
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
 
+import numpy as np
+
 from gfb_env.scripting import OneLineParser, check_output_dir
 from gfb_experiments.benchmark_agents import best_rule, headroom_csv_name, headroom_of, write_headroom_csv
-from gfb_experiments.benchmark_stats import DEFAULT_REPS
+from gfb_experiments.benchmark_stats import DEFAULT_REPS, paired_headroom
 
-__all__ = ["headroom_from_table", "main"]
+__all__ = ["LEARNED_COLUMNS", "headroom_from_table", "learned_vs_rule", "main"]
+
+#: the columns of ``benchmark_learned_vs_rule.csv``
+LEARNED_COLUMNS = [
+    "task", "learned", "training_seeds", "best_rule", "test_seeds", "difference_iqm", "difference_ci_low",
+    "difference_ci_high", "difference_mean", "difference_mean_ci_low", "difference_mean_ci_high",
+    "beats_rule",
+]  # fmt: skip
 
 
 def headroom_from_table(table: dict, reps: int = DEFAULT_REPS) -> dict[str, dict]:
@@ -41,6 +57,52 @@ def headroom_from_table(table: dict, reps: int = DEFAULT_REPS) -> dict[str, dict
             continue
         out[task] = {"headroom": headroom_of(info, best, reps)}
     return out
+
+
+def learned_vs_rule(table: dict, reps: int = DEFAULT_REPS) -> list[dict]:
+    """One record per (task, learned agent) of a ``benchmark_agents.json`` document: the learned agent's
+    normalised score minus the task's best rule's (:func:`best_rule`), paired over the evaluation seeds
+    (:func:`paired_headroom` with the learned agent in the oracle's place); empty without learned agents."""
+    if not isinstance(table, dict) or "rows" not in table or "tasks" not in table:
+        raise ValueError("table: not a benchmark_agents.json document (no 'rows' and 'tasks')")
+    out = []
+    for task, info in table["tasks"].items():
+        agents = info.get("agents", {})
+        best = best_rule(table["rows"], task, agents)
+        if best is None:
+            continue
+        learned = [r["agent"] for r in table["rows"] if r["task"] == task and r["kind"] == "learned"]
+        for name in learned:
+            if name not in agents:
+                continue
+            a, r = agents[name], agents[best["agent"]]
+            am, rm = a.get("normalized_mean"), r.get("normalized_mean")
+            if am is None or rm is None:
+                am = rm = None
+            h = paired_headroom(a["normalized"], r["normalized"], reps=reps, oracle_mean=am, rule_mean=rm)
+            out.append(
+                {
+                    "task": task,
+                    "learned": name,
+                    "training_seeds": len(a["normalized"]) if np.ndim(a["normalized"]) == 2 else 1,
+                    "best_rule": best["agent"],
+                    **h,
+                    "beats_rule": bool(h["iqm_low"] > 0 and h["mean_low"] > 0),
+                }
+            )
+    return out
+
+
+def write_learned_csv(records: list[dict], path: Path) -> None:
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(LEARNED_COLUMNS)
+        for h in records:
+            w.writerow(
+                [h["task"], h["learned"], h["training_seeds"], h["best_rule"], h["seeds"]]
+                + [repr(float(h[k])) for k in ("iqm", "iqm_low", "iqm_high", "mean", "mean_low", "mean_high")]
+                + [h["beats_rule"]]
+            )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -60,6 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         out = check_output_dir(a.out if a.out is not None else str(path.parent), "--out")
         table = json.loads(path.read_text())
         per_task = headroom_from_table(table, a.reps)
+        learned = learned_vs_rule(table, a.reps)
     except (ValueError, json.JSONDecodeError) as exc:
         ap.error(" ".join(str(exc).split()))
     if not per_task:
@@ -76,6 +139,16 @@ def main(argv: list[str] | None = None) -> int:
             f"{h['mean_high']:.3f}]; headroom >= 0.2: {claim}"
         )
     print(f"wrote {csv_path}")
+    if learned:
+        lpath = out / "benchmark_learned_vs_rule.csv"
+        write_learned_csv(learned, lpath)
+        for h in learned:
+            print(
+                f"{h['task']}: {h['learned']} ({h['training_seeds']} training seeds) minus {h['best_rule']}, "
+                f"n = {h['seeds']}: IQM {h['iqm']:+.3f} [{h['iqm_low']:+.3f}, {h['iqm_high']:+.3f}], mean "
+                f"{h['mean']:+.3f} [{h['mean_low']:+.3f}, {h['mean_high']:+.3f}]"
+            )
+        print(f"wrote {lpath}")
     return 0
 
 

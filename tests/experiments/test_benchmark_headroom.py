@@ -93,3 +93,31 @@ def test_merge_keeps_the_old_agents_scores_and_recomputes_the_headroom(rng):
         **paired_headroom([oracle], [good], reps=500),
         "established": True,
     }
+
+
+def test_learned_minus_the_best_rule_is_paired_per_learned_agent(rng, tmp_path):
+    """Issue 21: every learned agent against the best rule, its training seeds averaged per test seed
+    first; the synthetic ppo sits 0.2 above the good rule on every seed (so its CI excludes 0)."""
+    import json
+
+    from gfb_experiments.benchmark_headroom import LEARNED_COLUMNS, learned_vs_rule
+
+    table, oracle, good = _table(rng)
+    runs = [(good + 0.2 + 0.01 * rng.standard_normal(good.size)).tolist() for _ in range(3)]
+    table["tasks"]["T"]["agents"]["ppo"] = {"normalized": runs}
+    (h,) = learned_vs_rule(table, reps=1000)
+    assert h["learned"] == "ppo" and h["best_rule"] == "good" and h["training_seeds"] == 3
+    assert h == {**h, **paired_headroom(runs, [good], reps=1000)}
+    assert 0.15 < h["iqm_low"] < 0.2 < h["iqm_high"] < 0.25 and h["beats_rule"]
+    # a learned agent below the rule does not beat it
+    table["tasks"]["T"]["agents"]["ppo"] = {"normalized": [(good - 0.05).tolist()]}
+    (h2,) = learned_vs_rule(table, reps=1000)
+    assert h2["iqm"] == pytest.approx(-0.05) and not h2["beats_rule"]
+    # the command writes the CSV beside the headroom's
+    p = tmp_path / "benchmark_agents.json"
+    p.write_text(json.dumps(table))
+    assert main([str(p), "--reps", "500"]) == 0
+    with (tmp_path / "benchmark_learned_vs_rule.csv").open() as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0] == LEARNED_COLUMNS and rows[1][:5] == ["T", "ppo", "1", "good", "40"]
+    assert rows[1][-1] == "False"

@@ -112,12 +112,10 @@ def sensitivities(p: ZenerPlant, eta: float, r: float, lam: float, h: float = 0.
 def fisher(rows: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]], u: float, sd: float) -> np.ndarray:
     """Fisher information of (ln g, ln r, Re U, Im U) from ``n`` steps per row of the measured 1x vector
     ``U z + noise`` (each of the 4 real coefficients with sd ``sd``), at U real."""
-    F = np.zeros((4, 4))
-    for n, z, dg, dr in rows:
-        cols = [u * dg, u * dr, z, 1j * z]  # d(U z) / d theta, complex 2-vectors
-        Jr = np.array([np.concatenate([c.real, c.imag]) for c in cols]).T  # 4 measurements x 4 params
-        F += n * Jr.T @ Jr / sd**2
-    return F
+    from gfb_experiments.identifiability_bound import fisher_information
+
+    # d(U z) / d theta, complex 2-vectors
+    return fisher_information([(n, [u * dg, u * dr, z, 1j * z]) for n, z, dg, dr in rows], sd)
 
 
 def run(out: Path, r_true: tuple[float, ...] = (3.0, 10.0)) -> dict:

@@ -171,7 +171,7 @@ def _ref_key(task: str, seeds: list[int], env_kwargs: dict) -> str:
 def references(task: str, seeds: list[int], env_kwargs: dict, rules: list[str], cache: dict) -> dict:
     """Mean returns of naive, hold, the oracle and ``rules`` on ``seeds`` (played unless in ``cache``)."""
     from gfb_agents import ladder
-    from gfb_agents.learned.evaluate import evaluate
+    from gfb_agents.learned.evaluate import run_episode
     from gfb_env.envs import make_env
 
     key = _ref_key(task, seeds, env_kwargs)
@@ -185,10 +185,14 @@ def references(task: str, seeds: list[int], env_kwargs: dict, rules: list[str], 
     for label, name in names.items():
         if label in ref["mean_return"]:
             continue
+        # the policy plays on the env it was built with: the oracle reads that env's privileged channel
+        # (built on one env and played on another, it asked a closed env for its draw)
         env = make_env(task, **env_kwargs)
-        policy = ladder.build(name, env)
-        env.close()
-        res = evaluate(task, policy, seeds, env_kwargs=env_kwargs)
+        try:
+            policy = ladder.build(name, env)
+            res = [run_episode(env, policy, int(s)) for s in seeds]
+        finally:
+            env.close()
         ref["mean_return"][label] = float(np.mean([r.episode_return for r in res]))
         print(f"  {task} {label} ({name}): mean return {ref['mean_return'][label]:.2f}", file=sys.stderr)
     return ref["mean_return"]

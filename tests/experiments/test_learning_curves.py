@@ -99,3 +99,23 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, case):
     err = capsys.readouterr().err.strip().splitlines()
     assert e.value.code == 2 and len(err) == 1 and fragment in err[0], err
     assert not (tmp_path / "out" / "learning_curves.csv").exists()
+
+
+def test_references_play_the_oracle_on_its_own_env():
+    """The oracle reads the privileged channel of the env it was built with; the references used to build
+    it on one env and play it on another (RuntimeError: call reset() first).  One seed of RunUp-v2: the
+    oracle's return is the benchmark runner's on the same seed."""
+    from gfb_agents import ladder
+    from gfb_agents.learned.evaluate import run_episode
+    from gfb_agents.seeds import VALIDATION
+    from gfb_env.envs import make_env
+    from gfb_experiments.learning_curves import references
+
+    task, seed = "gfb_env/RunUp-v2", VALIDATION.start
+    ref = references(task, [seed], {}, [], {})
+    env = make_env(task)
+    try:
+        expect = run_episode(env, ladder.build(ladder.oracle_for(task).name, env), seed).episode_return
+    finally:
+        env.close()
+    assert ref["oracle"] == expect and ref["oracle"] > ref["naive"]

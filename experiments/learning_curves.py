@@ -219,11 +219,18 @@ def _plot(task: str, rows: list[dict], ref: dict, rules: list[str], path: Path) 
                 hi = np.array([p[f"{y}_ci_high"] for p in pts])
                 if np.all(np.isfinite(lo)):
                     ax.fill_between(xs, lo, hi, color=line.get_color(), alpha=0.2)
-    for rule in rules:
+    # the rules in the legend (annotations of close lines overlapped), one dash style each
+    styles = ("--", "-.", ":", (0, (5, 1, 1, 1)), (0, (1, 3)))
+    for i, rule in enumerate(rules):
         v = float(normalise([ref[rule]], ref)[0])
         for col in range(2):
-            axes[0, col].axhline(v, ls="--", lw=1, color="k")
-            axes[0, col].annotate(rule, (0.01, v), xycoords=("axes fraction", "data"), fontsize=8)
+            axes[0, col].axhline(
+                v,
+                ls=styles[i % len(styles)],
+                lw=1,
+                color="k",
+                label=f"{rule} (rule) {v:.2f}" if col == 0 else None,
+            )
     for col in range(2):
         axes[0, col].axhline(1.0, ls=":", lw=1, color="g")
         axes[0, col].axhline(0.0, ls=":", lw=1, color="gray")

@@ -473,8 +473,12 @@ def test_committed_policies_load_and_act():
     # every committed model (single folders and every seed of the multi-seed agents), each once
     committed = sorted(z.parent for z in POLICIES_DIR.rglob("model.zip"))
     assert len(committed) >= 9 and sorted(p.model_path.parent for p in pols) == committed
-    assert {p.env_id for p in pols} == set(V1_TASKS)
+    # the v1 record, and the v2 policies of issue 21's campaign as they are committed
+    assert set(V1_TASKS) <= {p.env_id for p in pols} <= set(V1_TASKS) | set(V2_TASKS)
     assert "RunUpRandomized-v1_sac/seed4" in {p.name for p in pols}
+    v2 = [p for p in pols if p.env_id in V2_TASKS]
+    assert "RunUpRandomized-v2_ppo_fs4/seed2" in {p.name for p in v2}
+    assert all(p.damping_slew is not None for p in v2)  # the campaign's realisable actuation
     for pol in pols:
         env = make_env(pol.env_id, max_episode_steps=5)  # the v1 policies: on the retired v1 envs
         n_obs = env.observation_space.shape[0]  # a frame-stack policy sees its last frame_stack observations

@@ -471,7 +471,8 @@ def test_committed_policies_load_and_act():
 
     pols = load_learned_policies()
     # every committed model (single folders and every seed of the multi-seed agents), each once
-    committed = sorted(z.parent for z in POLICIES_DIR.rglob("model.zip"))
+    # (a model.zip, or a deployed actor alone: actor.pt, the student's and asymmetric PPO's)
+    committed = sorted({z.parent for pat in ("model.zip", "actor.pt") for z in POLICIES_DIR.rglob(pat)})
     assert len(committed) >= 9 and sorted(p.model_path.parent for p in pols) == committed
     # the v1 record, and the v2 policies of issue 21's campaign as they are committed
     assert set(V1_TASKS) <= {p.env_id for p in pols} <= set(V1_TASKS) | set(V2_TASKS)
@@ -482,7 +483,9 @@ def test_committed_policies_load_and_act():
     for pol in pols:
         env = make_env(pol.env_id, max_episode_steps=5)  # the v1 policies: on the retired v1 envs
         n_obs = env.observation_space.shape[0]  # a frame-stack policy sees its last frame_stack observations
-        assert pol.model.observation_space.shape == (pol.frame_stack * n_obs,), pol.name
+        # a frame-stack policy sees its last frame_stack observations (a deployed actor: its obs_dim)
+        dim = getattr(pol.model, "obs_dim", None) or pol.model.observation_space.shape[0]
+        assert dim == pol.frame_stack * n_obs, pol.name
         res = run_episode(env, pol, seed=0)
         assert res.steps >= 1 and math.isfinite(res.episode_return)
         env.close()

@@ -156,9 +156,11 @@ def test_wheel_installs_and_runs_outside_the_repository(tmp_path):
 
     assert out["tasks"] == dict.fromkeys(ENV_IDS, True)
     # every committed model (one per training seed of each learned agent) loads and acts from the wheel
+    # (a model.zip, or a deployed actor alone: actor.pt, the v2 students)
     committed = {
         f"{z.parent.parent.name}/{z.parent.name}"
-        for z in (REPO / "agents" / "policies").glob("*/seed*/model.zip")
+        for pat in ("*/seed*/model.zip", "*/seed*/actor.pt")
+        for z in (REPO / "agents" / "policies").glob(pat)
     }
     assert len(committed) >= 9 and out["policies"] == dict.fromkeys(committed, True)
     assert "policy" in out["hyperparams"] and 1.0 < out["d_opt_kw1"] < 10.0

@@ -365,18 +365,24 @@ def _set_headroom(task: str, info: dict, rows: list[dict], reps: int) -> None:
         info["headroom"] = headroom_of(info, best, reps)
 
 
+def paired_difference(agents: dict, first: str, second: str, reps: int) -> dict:
+    """:func:`benchmark_stats.paired_headroom` of agent ``first`` over ``second`` from a task's per-agent
+    scores ``agents``: the IQM columns' scale (``normalized``) and, where both have it, the mean columns'
+    (``normalized_mean``; a table older than issue 19's consistent normalisation had one scale)."""
+    a, b = agents[first], agents[second]
+    am, bm = a.get("normalized_mean"), b.get("normalized_mean")
+    if am is None or bm is None:
+        am = bm = None
+    return paired_headroom(a["normalized"], b["normalized"], reps=reps, oracle_mean=am, rule_mean=bm)
+
+
 def headroom_of(info: dict, best: dict, reps: int) -> dict:
     """The paired headroom of a task's oracle over the rule of row ``best``, from the task's JSON entry
     ``info`` (its per-agent scores): the IQM difference on the IQM columns' scale (``normalized``), the mean
     difference on the mean columns' (``normalized_mean``; a table older than issue 19's consistent
     normalisation had one scale), both on the same resampled seeds (:func:`benchmark_stats.paired_headroom`).
     With the best rule, the split, the task's zero references and ``established`` (:func:`established`)."""
-    agents = info["agents"]
-    o, r = agents[info["oracle"]], agents[best["agent"]]
-    om, rm = o.get("normalized_mean"), r.get("normalized_mean")
-    if om is None or rm is None:
-        om = rm = None
-    h = paired_headroom(o["normalized"], r["normalized"], reps=reps, oracle_mean=om, rule_mean=rm)
+    h = paired_difference(info["agents"], info["oracle"], best["agent"], reps)
     return {
         "best_rule": best["agent"],
         "split": best["split"],

@@ -30,8 +30,14 @@ from pathlib import Path
 import numpy as np
 
 from gfb_env.scripting import OneLineParser, check_output_dir
-from gfb_experiments.benchmark_agents import best_rule, headroom_csv_name, headroom_of, write_headroom_csv
-from gfb_experiments.benchmark_stats import DEFAULT_REPS, paired_headroom
+from gfb_experiments.benchmark_agents import (
+    best_rule,
+    headroom_csv_name,
+    headroom_of,
+    paired_difference,
+    write_headroom_csv,
+)
+from gfb_experiments.benchmark_stats import DEFAULT_REPS
 
 __all__ = ["LEARNED_COLUMNS", "headroom_from_table", "learned_vs_rule", "main"]
 
@@ -75,11 +81,8 @@ def learned_vs_rule(table: dict, reps: int = DEFAULT_REPS) -> list[dict]:
         for name in learned:
             if name not in agents:
                 continue
-            a, r = agents[name], agents[best["agent"]]
-            am, rm = a.get("normalized_mean"), r.get("normalized_mean")
-            if am is None or rm is None:
-                am = rm = None
-            h = paired_headroom(a["normalized"], r["normalized"], reps=reps, oracle_mean=am, rule_mean=rm)
+            h = paired_difference(agents, name, best["agent"], reps)
+            a = agents[name]
             out.append(
                 {
                     "task": task,

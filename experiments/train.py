@@ -66,12 +66,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--env",
         default=None,
-        help="registered env id (default gfb_env/RunUpRandomized-v2; teacher_student: the teacher's)",
+        help="registered env id (default gfb_env/RunUpRandomized-v2; teacher_student: the teacher's, "
+        "or with --teacher oracle the task to distil on)",
     )
     ap.add_argument(
         "--teacher",
         default=None,
-        help="teacher_student: the privileged_ppo training run (a seed<r> folder) to distil from",
+        help="teacher_student: the privileged_ppo training run (a seed<r> folder) to distil from, or "
+        "'oracle' (the benchmark's oracle; then --env and --damping-slew are given)",
     )
     ap.add_argument(
         "--timesteps",
@@ -241,11 +243,18 @@ def _distill_main(ap, a, run_seeds: list[int], cmd: str) -> int:
     after another; refusals before any run (one line, exit 2)."""
     from pathlib import Path
 
+    from gfb_agents.learned.oracle_teacher import ORACLE_TEACHER
     from gfb_agents.learned.teacher_student import DistillConfig, distill
 
     if a.teacher is None:
-        ap.error(f"--algo {STUDENT_ALGO} needs --teacher RUN (a {TEACHER_ALGO} training run)")
-    if a.damping_slew is not None or a.damping_slew_reserve is not None:
+        ap.error(
+            f"--algo {STUDENT_ALGO} needs --teacher RUN (a {TEACHER_ALGO} training run) or --teacher "
+            f"{ORACLE_TEACHER}"
+        )
+    oracle = a.teacher == ORACLE_TEACHER
+    if oracle and a.env is None:
+        ap.error(f"--teacher {ORACLE_TEACHER} needs --env ID (the oracle is not a training run)")
+    if not oracle and (a.damping_slew is not None or a.damping_slew_reserve is not None):
         # the student's labels are its teacher's set-points: it takes the teacher's slew limit
         ap.error(
             f"--damping-slew: not with --algo {STUDENT_ALGO} (the student takes its teacher's slew limit; "
@@ -273,10 +282,19 @@ def _distill_main(ap, a, run_seeds: list[int], cmd: str) -> int:
                 n_envs=a.n_envs,
                 eval_episodes=a.eval_episodes,
                 vec_env=a.vec_env,
+                **(
+                    {
+                        "env_id": a.env,
+                        "damping_slew": a.damping_slew,
+                        "damping_slew_reserve": a.damping_slew_reserve,
+                    }
+                    if oracle
+                    else {}
+                ),
             )
             for r in run_seeds
         ]
-        if a.env is not None and a.env != configs[0].env_id:
+        if not oracle and a.env is not None and a.env != configs[0].env_id:
             raise ValueError(f"--env {a.env}: the teacher was trained on {configs[0].env_id}")
         root = (
             Path(a.out)

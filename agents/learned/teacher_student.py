@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
 import shutil
 import sys
 import time
@@ -183,8 +184,6 @@ def _teacher_files(run: Path) -> tuple[Path, Path | None]:
 
 def load_teacher(run: str | Path) -> tuple[TeacherPolicy, dict]:
     """The teacher of a ``privileged_ppo`` training run (its ``best/`` model) and its ``run.json``."""
-    import pickle
-
     from stable_baselines3 import PPO
 
     run = Path(run)
@@ -215,7 +214,9 @@ class DistillConfig:
 
     Attributes:
         teacher: a ``privileged_ppo`` training run's folder (its ``best/`` model is the teacher; the task,
-            its env kwargs and the observation statistics come from it).
+            its env kwargs and the observation statistics come from it), or ``"oracle"``
+            (:data:`~gfb_agents.learned.oracle_teacher.ORACLE_TEACHER`: the benchmark's oracle,
+            :mod:`gfb_agents.learned.oracle_teacher`; then ``env_id`` and the slew limit are given).
         timesteps: env steps collected in all (None: the YAML's ``n_timesteps``).
         seed: the independent run ``r``: torch / NumPy seeds and the TRAIN env seeds
             (``train_env_seed(r, i, session)``).
@@ -224,6 +225,9 @@ class DistillConfig:
         n_envs: parallel envs (None: the YAML's).
         eval_episodes: validation seeds played after each iteration.
         vec_env: the training envs (``make_vec_env_for``): ``"native"`` (default) or ``"dummy"``.
+        env_id: the task (only with the oracle teacher; a learned teacher's run names its own).
+        damping_slew, damping_slew_reserve: the slew limit of the damping command (only with the oracle
+            teacher; a learned teacher's student takes its teacher's).
     """
 
     teacher: Path
@@ -236,6 +240,15 @@ class DistillConfig:
     vec_env: str = "native"
     env_kwargs: dict = field(default_factory=dict)
     env_id: str = ""
+    damping_slew: float | None = None
+    damping_slew_reserve: float | None = None
+
+    @property
+    def oracle(self) -> bool:
+        """Whether the teacher is the benchmark's oracle (:mod:`gfb_agents.learned.oracle_teacher`)."""
+        from gfb_agents.learned.oracle_teacher import ORACLE_TEACHER
+
+        return str(self.teacher) == ORACLE_TEACHER
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "teacher", Path(self.teacher))
@@ -261,6 +274,13 @@ class DistillConfig:
             raise ValueError(f"eval_episodes must be a positive integer, got {self.eval_episodes!r}")
         if self.vec_env not in ("native", "dummy"):
             raise ValueError(f"vec_env must be 'native' or 'dummy' for teacher_student, got {self.vec_env!r}")
+        if self.oracle:
+            self._check_oracle()
+            return
+        if self.damping_slew is not None or self.damping_slew_reserve is not None:
+            raise ValueError(
+                "damping_slew: only with the oracle teacher (the student takes its teacher's slew limit)"
+            )
         meta_p = self.teacher / "run.json"
         if not meta_p.is_file():
             raise ValueError(f"--teacher {self.teacher}: no run.json (not a training run)")
@@ -272,12 +292,36 @@ class DistillConfig:
         object.__setattr__(self, "env_id", str(meta["env_id"]))
         object.__setattr__(self, "env_kwargs", dict(meta.get("env_kwargs") or {}))
 
+    def _check_oracle(self) -> None:
+        import gymnasium as gym
+
+        from gfb_agents.learned.slew import check_damping_slew, check_damping_slew_reserve
+        from gfb_env.envs import RETIRED_IDS, RetiredTaskError
+        from gfb_env.envs.retired import retired_message
+
+        if not self.env_id:
+            raise ValueError("env_id: the oracle teacher needs the task (--env ID)")
+        if self.env_id in RETIRED_IDS:
+            raise RetiredTaskError(f"env_id: {retired_message(self.env_id)}")
+        if self.env_id not in gym.registry:
+            raise ValueError(f"env_id: unknown env id {self.env_id!r}")
+        if "WhirlRecovery" in self.env_id:
+            raise ValueError(
+                f"env_id: the oracle teacher covers the run-up tasks; {self.env_id} starts in the whirl "
+                "(its oracle reads the true whirl amplitude at every step)"
+            )
+        check_damping_slew_reserve(self.damping_slew_reserve, check_damping_slew(self.damping_slew))
+
     def run_dir(self) -> Path:
         name = f"{self.env_id.split('/')[-1]}_{STUDENT_ALGO}"
         return self.out if self.out is not None else Path("runs") / name / f"seed{self.seed}"
 
     def as_dict(self) -> dict[str, Any]:
-        return {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(self).items()}
+        d = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(self).items()}
+        for k in ("damping_slew", "damping_slew_reserve"):  # a learned teacher's runs never had them
+            if d[k] is None:
+                del d[k]
+        return d
 
     def check_folder(self) -> tuple[dict[str, Any], dict | None]:
         """``(plan, last checkpoint or None)``; ValueError if the run's folder holds a distillation with
@@ -371,7 +415,13 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
     if (out / "run.json").exists() and done_iters >= p["iterations"]:
         print(f"{out}: already distilled ({done_iters} iterations); nothing to do", file=sys.stderr)
         return out
-    teacher, tmeta = load_teacher(c.teacher)
+    if c.oracle:
+        from gfb_agents.learned.oracle_teacher import OracleTeacher
+
+        teacher = OracleTeacher(c.env_id, p["n_envs"], c.damping_slew, c.damping_slew_reserve)
+        tmeta: dict = {}
+    else:
+        teacher, tmeta = load_teacher(c.teacher)
     out.mkdir(parents=True, exist_ok=True)
     session = int(prior["session"]) + 1 if prior else 0
     th.manual_seed(c.seed + session * seeds_mod.MAX_TRAIN_RUNS)
@@ -388,9 +438,14 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
     space = venv.action_space
     student = DeployedActor(p["history"] * n_obs, p["hidden"], "Tanh", space.low, space.high)
     opt = th.optim.Adam(student.parameters(), lr=float(p["learning_rate"]))
-    _, vn_src = _teacher_files(c.teacher)
+    vn_src = None if c.oracle else _teacher_files(c.teacher)[1]
     if vn_src is not None:
         shutil.copy2(vn_src, out / "vecnormalize.pkl")  # the student's frozen observation statistics
+    elif c.oracle and prior is not None:  # the statistics of the first iteration (oracle_teacher)
+        from gfb_agents.learned.evaluate import _obs_statistics
+
+        with open(out / "vecnormalize.pkl", "rb") as fh:
+            teacher.set_statistics(OBS_KEY, *_obs_statistics(pickle.load(fh)))
     if prior is not None:
         ck = out / "checkpoints" / prior["dir"]
         student = DeployedActor.load(ck / ACTOR_FILE).train()
@@ -445,6 +500,7 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
         "teacher": str(c.teacher),
         "teacher_frame_stack": teacher.frame_stack,
         "teacher_timesteps": tmeta.get("timesteps"),
+        **({"teacher_kind": "oracle", "teacher_margin": teacher.margin} if c.oracle else {}),
         **({"damping_slew": slew} if slew is not None else {}),
         **(
             {"damping_slew_reserve": teacher.damping_slew_reserve}
@@ -455,18 +511,34 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
     for it in range(done_iters, p["iterations"]):
         beta = float(p["beta_decay"]) ** it
         xs, ys = [], []
+        # the oracle teacher's first iteration: the teacher alone, its observations give the statistics
+        deferred = teacher.stats is None and c.oracle
+        raws: list[tuple[np.ndarray, np.ndarray]] = []
         student.eval()
         for _ in range(p["per_env"]):
-            xs_t = stack(norm_obs(o[OBS_KEY]), starts)
+            if c.oracle and starts.any():
+                teacher.plan_episodes(venv, np.flatnonzero(starts))
             label = teacher.act(o[OBS_KEY], o[PRIVILEGED_KEY], starts)
-            own, _ = student.predict(xs_t, deterministic=True)
-            use_teacher = rng.random(p["n_envs"]) < beta
-            a = np.where(use_teacher[:, None], label, own).astype(np.float32)
-            xs.append(xs_t)
+            if deferred:
+                raws.append((np.array(o[OBS_KEY]), starts.copy()))
+                a = label
+            else:
+                xs_t = stack(norm_obs(o[OBS_KEY]), starts)
+                own, _ = student.predict(xs_t, deterministic=True)
+                use_teacher = rng.random(p["n_envs"]) < beta
+                a = np.where(use_teacher[:, None], label, own).astype(np.float32)
+                xs.append(xs_t)
             ys.append(np.clip(label, space.low, space.high))
             o, _, dones, _ = venv.step(a)
             starts = np.asarray(dones, dtype=bool)
             steps += p["n_envs"]
+        if deferred:
+            from gfb_agents.learned.oracle_teacher import observation_statistics, save_statistics
+
+            mean, var = observation_statistics(np.concatenate([r for r, _ in raws]))
+            teacher.set_statistics(OBS_KEY, mean, var)
+            save_statistics(out / "vecnormalize.pkl", base, mean, var)
+            xs = [stack(norm_obs(r), s0) for r, s0 in raws]  # the stack as it would have run
         X = np.concatenate([X, *xs])[-p["max_samples"] :]
         Y = np.concatenate([Y, *ys])[-p["max_samples"] :]
         student.train()
@@ -513,7 +585,7 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
             best.mkdir(exist_ok=True)
             student.save(best / (ACTOR_FILE + ".tmp"), {"algo": STUDENT_ALGO, "env_id": c.env_id})
             os.replace(best / (ACTOR_FILE + ".tmp"), best / ACTOR_FILE)
-            if vn_src is not None:
+            if (out / "vecnormalize.pkl").exists():
                 shutil.copy2(out / "vecnormalize.pkl", best / "vecnormalize.pkl")
             _atomic_json(best / "best.json", {**rec, "validation_seeds": val_seeds})
         _atomic_json(out / "validation.json", {**validation, "seeds": val_seeds})

@@ -67,8 +67,10 @@ agents-benchmark-v1: $(STAMP)
 # seeds), SAC (5 seeds x 300k), every damping command slew-limited to 3x the best rule's mean change.
 # Many hours on 2 cores: RESUMABLE, rerun `make learned-v2` and every unfinished run continues from its
 # checkpoint, finished ones are skipped.  Runs go to runs/ (not committed); learning-curves-v2 draws them.
-TRAIN := $(BIN)/python -m gfb_experiments.train --no-tensorboard --no-progress-bar --n-jobs 2 \
-	--eval-episodes 20 --eval-freq 50000 --checkpoint-freq 50000
+TRAIN_FLAGS := --no-tensorboard --no-progress-bar --eval-episodes 20 --eval-freq 50000 --checkpoint-freq 50000
+TRAIN := $(BIN)/python -m gfb_experiments.train $(TRAIN_FLAGS) --n-jobs 2
+# a distillation runs its seeds one after another (teacher_student refuses --n-jobs)
+DISTILL := $(BIN)/python -m gfb_experiments.train $(TRAIN_FLAGS)
 SLEW_RunUpRandomized-v2 := 0.027
 SLEW_RunUp-v2 := 0.028
 SLEW_WhirlRecovery-v2 := 0.0058
@@ -79,7 +81,7 @@ define campaign
 		--seeds 2-6 --timesteps 1000000 --out runs/v2/$(1)_asymmetric_ppo_fs4
 	$(TRAIN) --algo privileged_ppo --env gfb_env/$(1) --damping-slew $(SLEW_$(1)) --seeds 0 \
 		--timesteps 1000000 --out runs/v2/$(1)_teacher
-	$(TRAIN) --algo teacher_student --teacher runs/v2/$(1)_teacher/seed0 --seeds 0-4 \
+	$(DISTILL) --algo teacher_student --teacher runs/v2/$(1)_teacher/seed0 --seeds 0-4 \
 		--out runs/v2/$(1)_student
 	$(TRAIN) --algo sac --env gfb_env/$(1) --damping-slew $(SLEW_$(1)) --seeds 0-4 --timesteps 300000 \
 		--out runs/v2/$(1)_sac
@@ -93,6 +95,8 @@ learned-v2: $(STAMP)
 learning-curves-v2: $(STAMP)
 	$(BIN)/python -m gfb_experiments.learning_curves $(wildcard runs/v2/RunUpRandomized-v2_*) \
 		--rules margin_aim_1x_05,margin_search_1x --out results/learning_curves_v2/RunUpRandomized-v2
+	$(BIN)/python -m gfb_experiments.learning_curves $(wildcard runs/v2/RunUp-v2_*) \
+		--rules margin_aim_1x_05,margin_search_1x --out results/learning_curves_v2/RunUp-v2
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache

@@ -1,0 +1,114 @@
+"""Where a learned policy ends its episodes against the oracle's plan (validation seeds; a diagnosis, not
+the benchmark).
+
+    python -m gfb_experiments.diagnose_policy RUN_DIR [--env ID] [--episodes N] [--out FILE.csv]
+
+Per episode of the first ``N`` VALIDATION seeds: the policy's return, success, touchdown and its step,
+its final speed against the plant's best stable speed (``best_stable_operating_point``, read through the
+privileged channel after the episode: the policy never sees it), its last damping command against the
+oracle's ``D_opt / g``, and the oracle's return on the same seed.  For docs/agents.md's reading of why a
+policy falls short (e.g. the oracle-taught student: an overshoot, or a damping command far from
+``D_opt / g``).  Never on test seeds.
+"""
+
+from __future__ import annotations
+
+import csv
+import sys
+from pathlib import Path
+
+from gfb_env.scripting import OneLineParser, check_output_dir
+
+__all__ = ["diagnose", "main"]
+
+FIELDS = (
+    "seed",
+    "return",
+    "success",
+    "touchdown",
+    "steps",
+    "final_speed_rpm",
+    "best_speed_rpm",
+    "final_speed_rel",
+    "final_damping_command",
+    "oracle_damping_command",
+    "oracle_return",
+)
+
+
+def diagnose(run_dir: str | Path, env_id: str | None = None, episodes: int = 10) -> list[dict]:
+    """The rows of the module docstring for the policy of ``run_dir`` (its ``best/`` as the benchmark
+    loads it)."""
+    import gymnasium as gym
+
+    import gfb_env.envs  # noqa: F401  (registers the ids)
+    from gfb_agents.learned.evaluate import LearnedPolicy, run_episode
+    from gfb_agents.oracles.commanded import CommandedOracle
+    from gfb_agents.seeds import VALIDATION
+
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes must be a positive integer, got {episodes!r}")
+    pol = LearnedPolicy(run_dir)
+    env_id = env_id or pol.env_id
+    if env_id is None:
+        raise ValueError(f"--env: {run_dir} does not name its task; pass --env ID")
+    rows = []
+    for seed in VALIDATION.first(episodes):
+        env = gym.make(env_id)
+        r = run_episode(env, pol, seed, record_path=True)
+        best = env.unwrapped.best_stable_operating_point()  # privileged, after the episode
+        oenv = gym.make(env_id)
+        ro = run_episode(oenv, CommandedOracle(oenv), seed)
+        rows.append(
+            {
+                "seed": seed,
+                "return": round(r.episode_return, 3),
+                "success": r.success,
+                "touchdown": r.touchdown,
+                "steps": r.steps,
+                "final_speed_rpm": round(r.final_speed_rpm, 1),
+                "best_speed_rpm": round(best.speed_rpm, 1),
+                "final_speed_rel": round(r.final_speed_rpm / best.speed_rpm - 1.0, 4),
+                "final_damping_command": round(r.path_damping[-1], 3) if r.path_damping else float("nan"),
+                "oracle_damping_command": round(best.commanded_damping, 3),
+                "oracle_return": round(ro.episode_return, 3),
+            }
+        )
+        env.close()
+        oenv.close()
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = OneLineParser(prog="python -m gfb_experiments.diagnose_policy", description=__doc__.splitlines()[0])
+    ap.add_argument("run_dir", help="a training run (seed<r> folder) or an exported policy folder")
+    ap.add_argument("--env", default=None, help="task id (default: the policy's)")
+    ap.add_argument("--episodes", type=int, default=10, help="first N VALIDATION seeds (default 10)")
+    ap.add_argument("--out", default=None, help="CSV file to write (default: stdout only)")
+    a = ap.parse_args(argv)
+    if a.episodes < 1:
+        ap.error(f"--episodes must be a positive integer, got {a.episodes}")
+    if not Path(a.run_dir).is_dir():
+        ap.error(f"run_dir: no such folder: {a.run_dir}")
+    if a.out is not None:
+        try:
+            check_output_dir(str(Path(a.out).parent), "--out")
+        except ValueError as exc:
+            ap.error(str(exc))
+    try:
+        rows = diagnose(a.run_dir, a.env, a.episodes)
+    except (ValueError, FileNotFoundError) as exc:
+        ap.error(str(exc))
+    w = csv.DictWriter(sys.stdout, fieldnames=FIELDS)
+    w.writeheader()
+    w.writerows(rows)
+    if a.out is not None:
+        with open(a.out, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=FIELDS)
+            w.writeheader()
+            w.writerows(rows)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

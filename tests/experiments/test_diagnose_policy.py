@@ -1,0 +1,43 @@
+"""``gfb_experiments.diagnose_policy``: a committed policy's episode against the oracle's plan (one
+validation seed), and one clear line for bad input."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+
+import pytest
+
+from gfb_experiments.diagnose_policy import FIELDS, diagnose, main
+
+POLICY = Path(__file__).resolve().parents[2] / "agents" / "policies" / "RunUpRandomized-v2_student" / "seed0"
+
+
+def test_a_committed_student_is_diagnosed_against_the_oracles_plan(tmp_path, capsys):
+    (row,) = diagnose(POLICY, episodes=1)
+    assert set(row) == set(FIELDS)
+    assert row["steps"] == 250 or row["touchdown"]
+    # the final speed is compared with the plant's best stable speed, consistently
+    assert math.isclose(
+        row["final_speed_rel"], row["final_speed_rpm"] / row["best_speed_rpm"] - 1, abs_tol=2e-4
+    )
+    assert row["oracle_damping_command"] > 0 and math.isfinite(row["oracle_return"])
+    out = tmp_path / "d.csv"
+    assert main([str(POLICY), "--episodes", "1", "--out", str(out)]) == 0
+    printed = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+    written = list(csv.DictReader(out.open()))
+    assert printed == written and float(written[0]["return"]) == pytest.approx(row["return"])
+
+
+@pytest.mark.parametrize(
+    "argv, fragment",
+    [(["/nonexistent/run"], "no such folder"), ([str(POLICY), "--episodes", "0"], "--episodes")],
+)
+def test_bad_input_is_one_line_and_exit_2(argv, fragment, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and fragment in err[0]

@@ -34,6 +34,11 @@ _KEYS = (
     "n_envs",
     "frame_stack",
     "privileged",
+    # a distilled student's teacher (a privileged_ppo run, or the oracle: teacher_kind, teacher_margin)
+    "teacher",
+    "teacher_kind",
+    "teacher_margin",
+    "teacher_timesteps",
     # the damping command's slew limit: part of the policy (LearnedPolicy applies it)
     "damping_slew",
     "damping_slew_reserve",

@@ -16,6 +16,15 @@ bearing, its motor limit and clock), at every step only the observed speed.  Its
 ``CommandedOracle``'s actions (tests/agents/test_oracle_teacher.py).  WhirlRecovery's oracle reads the
 true whirl amplitude at every step; it is not covered (one clear line).
 
+**The probe** (``oracle_probe`` of ``teacher_student.yml``, optional): the oracle never probes, because it
+does not need to; a student that imitates it cannot learn to gather what it lacks (the imitation gap:
+docs/agents.md).  With a probe ``((D_1, n_1), (D_2, n_2), ...)`` the teacher first holds the start speed
+(speed action 0) and commands the damping ``D_j`` for ``n_j`` control steps each, in order, as the rules'
+probe does (``margin_search``: the 1x vector versus damping), and only then follows the oracle's plan: an
+expert whose actions are a function of the step index and the hidden plant, so DAgger can still query it
+in any state, and whose first steps show the student what tells g.  The student needs a history that
+spans the probe (``history`` >= its steps).
+
 The student's observation statistics: the oracle has none (it never normalised anything); the distillation
 takes the mean and variance of the observations of its first iteration (played by the teacher alone,
 ``beta_0 = 1``) and freezes them (``vecnormalize.pkl``, as the student of a learned teacher does with the
@@ -31,7 +40,7 @@ import numpy as np
 
 from gfb_agents.oracles.commanded import ORACLE_MARGIN
 
-__all__ = ["ORACLE_TEACHER", "OracleTeacher", "observation_statistics", "save_statistics"]
+__all__ = ["ORACLE_TEACHER", "OracleTeacher", "check_probe", "observation_statistics", "save_statistics"]
 
 #: the ``--teacher`` value that names the oracle (not a training run's folder)
 ORACLE_TEACHER = "oracle"
@@ -54,6 +63,7 @@ class OracleTeacher:
         damping_slew: float | None = None,
         damping_slew_reserve: float | None = None,
         margin: float | None = None,
+        probe: Sequence[Sequence[float]] = (),
     ):
         from gfb_agents.learned.slew import check_damping_slew, check_damping_slew_reserve
 
@@ -71,6 +81,10 @@ class OracleTeacher:
         # the motor limit; NaN until planned
         self.plan = np.full((self.n_envs, 4), np.nan)
         self._layout = None
+        self.probe = check_probe(probe)
+        self.probe_steps = int(sum(n for _, n in self.probe))
+        self._probe_actions: np.ndarray | None = None  # (probe_steps,) damping actions, per step
+        self.k = np.zeros(self.n_envs, dtype=int)  # each env's control steps in its episode so far
 
     # -- the plan -------------------------------------------------------------------------------------
     def plan_episodes(self, venv: Any, indices: Sequence[int] | np.ndarray) -> None:
@@ -96,6 +110,10 @@ class OracleTeacher:
                 (self._layout,) = venv.get_attr("observation_layout", indices=[i])
             setpoint = min(cmd.bearing_number, (1.0 - self.margin) * best.bearing_number)
             self.plan[i] = (setpoint, d_action, bearing.bearing_number_at(1.0), rate * step_tau)
+            self.k[i] = 0
+            if self._probe_actions is None:
+                acts = [venv.env_method("action_from_damping", d, indices=[i])[0] for d, _ in self.probe]
+                self._probe_actions = np.repeat(np.asarray(acts, dtype=float), [n for _, n in self.probe])
 
     def act(self, obs: np.ndarray, privileged: np.ndarray | None, starts: np.ndarray) -> np.ndarray:
         """``(n, 2)`` actions for raw observations ``(n, n_obs)``: ``CommandedOracle._act`` per env."""
@@ -105,9 +123,13 @@ class OracleTeacher:
         out = np.empty((obs.shape[0], 2), dtype=np.float32)
         for i in range(obs.shape[0]):
             setpoint, d_action, lam_per_rpm, step = self.plan[i]
-            lam = lam_per_rpm * self._layout.speed_rpm(obs[i])
-            out[i, 0] = float(np.clip((setpoint - lam) / step, -1.0, 1.0))
-            out[i, 1] = d_action
+            if self.k[i] < self.probe_steps:  # the probe: hold the speed, the probe's damping
+                out[i] = (0.0, self._probe_actions[self.k[i]])
+            else:
+                lam = lam_per_rpm * self._layout.speed_rpm(obs[i])
+                out[i, 0] = float(np.clip((setpoint - lam) / step, -1.0, 1.0))
+                out[i, 1] = d_action
+            self.k[i] += 1
         return out
 
     def reset(self) -> None:
@@ -123,6 +145,25 @@ class OracleTeacher:
         if self.stats is None:
             raise RuntimeError("OracleTeacher.normalise before the observation statistics are set")
         return _normalise(x, *self.stats[key], self.eps, self.clip)
+
+
+def check_probe(probe: Sequence[Sequence[float]]) -> tuple[tuple[float, int], ...]:
+    """The probe as ``((D_W command, steps), ...)``; ValueError (naming ``oracle_probe``) unless every
+    entry is a positive finite damping with a positive whole number of steps."""
+    out = []
+    for entry in probe or ():
+        try:
+            d, n = entry
+        except (TypeError, ValueError):
+            raise ValueError(f"oracle_probe entries must be [damping, steps] pairs, got {entry!r}") from None
+        if isinstance(d, bool) or not isinstance(d, (int, float)) or not 0 < float(d) < float("inf"):
+            raise ValueError(f"oracle_probe damping must be a positive number, got {d!r}")
+        if isinstance(n, float) and n.is_integer():
+            n = int(n)
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+            raise ValueError(f"oracle_probe steps must be a positive integer, got {n!r}")
+        out.append((float(d), int(n)))
+    return tuple(out)
 
 
 def observation_statistics(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -66,6 +66,9 @@ DISTILL_KEYS: dict[str, Any] = {
     "max_samples": 200_000,  # the aggregated data set keeps the newest states
     "history": 8,  # observations the student's encoder reads (its frame stack)
     "hidden": [128, 128],  # the student's MLP
+    # the oracle teacher's probe, [[D_W command, steps], ...] (oracle_teacher; [] = none; only with
+    # --teacher oracle, and left out of a run's plan when empty)
+    "oracle_probe": [],
 }
 
 
@@ -376,6 +379,15 @@ class DistillConfig:
             raise ValueError(
                 f"teacher_student hidden must be a list of positive layer sizes, got {p['hidden']!r}"
             )
+        from gfb_agents.learned.oracle_teacher import check_probe
+
+        probe = check_probe(p["oracle_probe"])
+        if probe and not self.oracle:
+            raise ValueError("oracle_probe: only with the oracle teacher (--teacher oracle)")
+        if probe:
+            p["oracle_probe"] = [list(e) for e in probe]
+        else:  # the runs of a learned teacher, and the oracle's without a probe, never had the key
+            del p["oracle_probe"]
         p["per_env"] = -(-p["steps_per_iteration"] // p["n_envs"])  # steps of each env per iteration
         p["iterations"] = -(-p["n_timesteps"] // (p["per_env"] * p["n_envs"]))
         return p
@@ -418,7 +430,9 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
     if c.oracle:
         from gfb_agents.learned.oracle_teacher import OracleTeacher
 
-        teacher = OracleTeacher(c.env_id, p["n_envs"], c.damping_slew, c.damping_slew_reserve)
+        teacher = OracleTeacher(
+            c.env_id, p["n_envs"], c.damping_slew, c.damping_slew_reserve, probe=p.get("oracle_probe", ())
+        )
         tmeta: dict = {}
     else:
         teacher, tmeta = load_teacher(c.teacher)

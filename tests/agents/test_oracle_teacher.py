@@ -19,6 +19,7 @@ from gfb_agents import seeds
 from gfb_agents.learned import teacher_student as ts
 from gfb_agents.learned.asymmetric import DeployedActor
 from gfb_agents.learned.evaluate import LearnedPolicy, run_episode
+from gfb_agents.learned.export_policy import export_policy
 from gfb_agents.learned.oracle_teacher import OracleTeacher
 from gfb_agents.learned.train import load_hyperparams, make_vec_env_for
 from gfb_agents.learned.vec_env import DampingSlewVecEnv
@@ -26,12 +27,15 @@ from gfb_agents.oracles.commanded import CommandedOracle
 from gfb_experiments.train import main as train_main
 
 
+@pytest.mark.parametrize("vec_env", ["dummy", "native"])
 @pytest.mark.parametrize("env_id", ["gfb_env/RunUp-v2", "gfb_env/RunUpRandomized-v2"])
-def test_the_labels_are_the_oracles_actions_on_every_env_across_autoresets(env_id):
+def test_the_labels_are_the_oracles_actions_on_every_env_across_autoresets(env_id, vec_env):
     n = 2
-    venv = make_vec_env_for(env_id, n, 4242, None, {"max_episode_steps": 5}, "dummy")
+    venv = make_vec_env_for(env_id, n, 4242, None, {"max_episode_steps": 5}, vec_env)
     teacher = OracleTeacher(env_id, n)
-    refs = [CommandedOracle(e) for e in venv.envs]
+    # the oracle bound to each env the vector env steps (DummyVecEnv's envs; the native adapter's)
+    envs = venv.envs if vec_env == "dummy" else venv._envs(None)
+    refs = [CommandedOracle(e) for e in envs]
     o = venv.reset()
     starts = np.ones(n, dtype=bool)
     setpoints = set()
@@ -49,6 +53,42 @@ def test_the_labels_are_the_oracles_actions_on_every_env_across_autoresets(env_i
     # a new plan per episode: the drawn g (and bearing) move the setpoint
     assert len(setpoints) >= 3
     venv.close()
+
+
+@pytest.mark.parametrize("vec_env", ["dummy", "native"])
+def test_the_probe_holds_the_speed_and_steps_the_damping_then_the_oracle_takes_over(vec_env):
+    env_id, n = "gfb_env/RunUp-v2", 2
+    venv = make_vec_env_for(env_id, n, 777, None, {"max_episode_steps": 6}, vec_env)
+    teacher = OracleTeacher(env_id, n, probe=[[0.3, 2], [7.0, 1]])
+    u = gym.make(env_id).unwrapped
+    want_probe = [u.action_from_damping(0.3)] * 2 + [u.action_from_damping(7.0)]
+    o = venv.reset()
+    starts = np.ones(n, dtype=bool)
+    k = 0
+    for _ in range(9):  # an autoreset at step 6: the probe again
+        teacher.plan_episodes(venv, np.flatnonzero(starts))
+        label = teacher.act(o, None, starts)
+        step = k % 6
+        if step < 3:
+            np.testing.assert_array_equal(label[:, 0], 0.0)
+            np.testing.assert_allclose(label[:, 1], want_probe[step], atol=1e-6)
+        else:  # the oracle's plan: its damping command, the ramp toward its setpoint
+            np.testing.assert_allclose(label[:, 1], teacher.plan[:, 1], atol=1e-6)
+            assert np.all(label[:, 0] > 0)
+        o, _, dones, _ = venv.step(label)
+        starts = np.asarray(dones, dtype=bool)
+        k += 1
+    assert k == 9 and teacher.k.tolist() == [3, 3]
+    venv.close()
+
+
+@pytest.mark.parametrize(
+    "probe, fragment",
+    [([[0.3]], "pairs"), ([[-1.0, 3]], "positive number"), ([[0.3, 0]], "positive integer")],
+)
+def test_a_bad_probe_is_refused_naming_oracle_probe(probe, fragment):
+    with pytest.raises(ValueError, match=f"oracle_probe.*{fragment}"):
+        OracleTeacher("gfb_env/RunUp-v2", 2, probe=probe)
 
 
 def test_the_oracle_teacher_refuses_whirl_recovery_and_a_missing_env(tmp_path, capsys):
@@ -133,3 +173,8 @@ def test_the_oracles_student_takes_its_statistics_from_the_first_iteration_resum
     assert pol.damping_slew == 0.028
     res = run_episode(gym.make(env_id, max_episode_steps=4), pol, seed=seeds.VALIDATION.first(1)[0])
     assert res.steps == 4 and math.isfinite(res.episode_return)
+    # exported, it says who taught it
+    dest = export_policy(out, "oracle_student", root=tmp_path / "policies")
+    exported = json.loads((dest / "policy.json").read_text())
+    assert exported["teacher_kind"] == "oracle" and exported["teacher"] == "oracle"
+    assert LearnedPolicy(dest).damping_slew == 0.028

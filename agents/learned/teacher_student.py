@@ -69,6 +69,11 @@ DISTILL_KEYS: dict[str, Any] = {
     # the oracle teacher's probe, [[D_W command, steps], ...] (oracle_teacher; [] = none; only with
     # --teacher oracle, and left out of a run's plan when empty)
     "oracle_probe": [],
+    # observation entries (ObservationLayout names) the student may not read: their columns of its first
+    # layer are held at zero, so the deployed actor ignores them exactly ([] = none; left out of a run's
+    # plan when empty).  E.g. ["damping"]: the indicated damping, which under the teacher's control
+    # follows the label, so a student could copy it instead of inferring g (the copycat problem)
+    "drop_inputs": [],
 }
 
 
@@ -388,6 +393,20 @@ class DistillConfig:
             p["oracle_probe"] = [list(e) for e in probe]
         else:  # the runs of a learned teacher, and the oracle's without a probe, never had the key
             del p["oracle_probe"]
+        drop = p["drop_inputs"]
+        if not isinstance(drop, list) or not all(isinstance(x, str) for x in drop):
+            raise ValueError(f"teacher_student drop_inputs must be a list of observation names, got {drop!r}")
+        if drop:
+            import gymnasium as gym
+
+            import gfb_env.envs  # noqa: F401  (registers the ids)
+
+            names = gym.make(self.env_id).unwrapped.observation_layout.names
+            unknown_names = [x for x in drop if x not in names]
+            if unknown_names:
+                raise ValueError(f"teacher_student drop_inputs {unknown_names} are not observation entries")
+        else:
+            del p["drop_inputs"]
         p["per_env"] = -(-p["steps_per_iteration"] // p["n_envs"])  # steps of each env per iteration
         p["iterations"] = -(-p["n_timesteps"] // (p["per_env"] * p["n_envs"]))
         return p
@@ -407,6 +426,25 @@ def _latest(out: Path) -> dict | None:
         return None
     state = json.loads(p.read_text())
     return state if (out / "checkpoints" / state["dir"] / "data.npz").exists() else None
+
+
+def _dropped_columns(venv, names, history: int, n_obs: int) -> np.ndarray:
+    """The student's input columns of the observation entries ``names`` in every frame of its history
+    (VecFrameStack's layout: frame ``f`` holds columns ``f n_obs .. (f + 1) n_obs - 1``)."""
+    if not names:
+        return np.zeros(0, dtype=int)
+    (layout,) = venv.get_attr("observation_layout", indices=[0])
+    idx = [list(layout.names).index(x) for x in names]
+    return np.array([f * n_obs + j for f in range(history) for j in idx], dtype=int)
+
+
+def _zero_columns(student, cols: np.ndarray) -> None:
+    """Hold the first layer's weights of ``cols`` at zero (the student does not read those inputs)."""
+    if cols.size:
+        import torch as th
+
+        with th.no_grad():
+            student.policy_net[0].weight[:, th.as_tensor(cols)] = 0.0
 
 
 def distill(c: DistillConfig, command: str | None = None) -> Path:
@@ -452,6 +490,8 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
     space = venv.action_space
     student = DeployedActor(p["history"] * n_obs, p["hidden"], "Tanh", space.low, space.high)
     opt = th.optim.Adam(student.parameters(), lr=float(p["learning_rate"]))
+    dropped = _dropped_columns(venv, p.get("drop_inputs", ()), p["history"], n_obs)
+    _zero_columns(student, dropped)
     vn_src = None if c.oracle else _teacher_files(c.teacher)[1]
     if vn_src is not None:
         shutil.copy2(vn_src, out / "vecnormalize.pkl")  # the student's frozen observation statistics
@@ -566,6 +606,7 @@ def distill(c: DistillConfig, command: str | None = None) -> Path:
                 opt.zero_grad()
                 loss.backward()
                 opt.step()
+                _zero_columns(student, dropped)
                 loss_v = float(loss.detach())
         student.eval()
         # validation: the student as it is deployed (LearnedPolicy over the plain observation)

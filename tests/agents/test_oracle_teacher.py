@@ -178,3 +178,27 @@ def test_the_oracles_student_takes_its_statistics_from_the_first_iteration_resum
     exported = json.loads((dest / "policy.json").read_text())
     assert exported["teacher_kind"] == "oracle" and exported["teacher"] == "oracle"
     assert LearnedPolicy(dest).damping_slew == 0.028
+
+
+def test_a_dropped_input_is_not_read_by_the_deployed_student(tmp_path):
+    env_id = "gfb_env/RunUp-v2"
+    hs = load_hyperparams("teacher_student", env_id)
+    hs.update(n_envs=2, steps_per_iteration=16, epochs=2, batch_size=8, history=2, hidden=[8])
+    hs["drop_inputs"] = ["damping"]
+    hp = tmp_path / "s.yml"
+    hp.write_text(yaml.safe_dump({env_id: hs}))
+    kw = dict(teacher="oracle", env_id=env_id, env_kwargs={"max_episode_steps": 8}, timesteps=32)
+    out = ts.distill(ts.DistillConfig(**kw, out=tmp_path / "s", hyperparams=hp, eval_episodes=1))
+    actor = DeployedActor.load(out / "actor.pt")
+    j = list(gym.make(env_id).unwrapped.observation_layout.names).index("damping")
+    n_obs = actor.obs_dim // 2
+    w = actor.policy_net[0].weight.detach().numpy()
+    assert np.all(w[:, [j, n_obs + j]] == 0) and np.count_nonzero(w) > 0
+    x = np.random.default_rng(0).normal(size=(4, actor.obs_dim)).astype(np.float32)
+    y = x.copy()
+    y[:, [j, n_obs + j]] += 5.0
+    np.testing.assert_array_equal(actor.predict(x)[0], actor.predict(y)[0])
+    hs["drop_inputs"] = ["no_such_entry"]
+    hp.write_text(yaml.safe_dump({env_id: hs}))
+    with pytest.raises(ValueError, match="drop_inputs"):
+        ts.DistillConfig(**kw, out=tmp_path / "t", hyperparams=hp).plan()

@@ -5,8 +5,9 @@ the benchmark).
 
 Per episode of the first ``N`` VALIDATION seeds: the policy's return, success, touchdown and its step,
 its final speed against the plant's best stable speed (``best_stable_operating_point``, read through the
-privileged channel after the episode: the policy never sees it), its last damping command against the
-oracle's ``D_opt / g``, and the oracle's return on the same seed.  For docs/agents.md's reading of why a
+privileged channel after the episode: the policy never sees it), its final actual foil damping ``D_W``
+against the plant's ``D_opt`` and its last damping command (``D_W / g``) against the oracle's
+``D_opt / g``, and the oracle's return on the same seed.  For docs/agents.md's reading of why a
 policy falls short (e.g. the oracle-taught student: an overshoot, or a damping command far from
 ``D_opt / g``).  Never on test seeds.
 """
@@ -14,6 +15,7 @@ policy falls short (e.g. the oracle-taught student: an overshoot, or a damping c
 from __future__ import annotations
 
 import csv
+import math
 import sys
 from pathlib import Path
 
@@ -30,6 +32,9 @@ FIELDS = (
     "final_speed_rpm",
     "best_speed_rpm",
     "final_speed_rel",
+    "final_foil_damping",
+    "best_foil_damping",
+    "final_damping_rel",
     "final_damping_command",
     "oracle_damping_command",
     "oracle_return",
@@ -57,6 +62,9 @@ def diagnose(run_dir: str | Path, env_id: str | None = None, episodes: int = 10)
         env = gym.make(env_id)
         r = run_episode(env, pol, seed, record_path=True)
         best = env.unwrapped.best_stable_operating_point()  # privileged, after the episode
+        g = float(env.unwrapped.hidden_parameters()["damping_gain"])
+        # the path's damping is the judge's true D_W (actual = g x command), not the command
+        d_end = float(r.path_damping[-1]) if r.path_damping else float("nan")
         oenv = gym.make(env_id)
         ro = run_episode(oenv, CommandedOracle(oenv), seed)
         rows.append(
@@ -69,8 +77,11 @@ def diagnose(run_dir: str | Path, env_id: str | None = None, episodes: int = 10)
                 "final_speed_rpm": round(r.final_speed_rpm, 1),
                 "best_speed_rpm": round(best.speed_rpm, 1),
                 "final_speed_rel": round(r.final_speed_rpm / best.speed_rpm - 1.0, 4),
-                "final_damping_command": round(r.path_damping[-1], 3) if r.path_damping else float("nan"),
-                "oracle_damping_command": round(best.commanded_damping, 3),
+                "final_foil_damping": round(d_end, 4),
+                "best_foil_damping": round(best.foil_damping, 4),
+                "final_damping_rel": round(math.log(d_end / best.foil_damping), 4),
+                "final_damping_command": round(d_end / g, 4),
+                "oracle_damping_command": round(best.commanded_damping, 4),
                 "oracle_return": round(ro.episode_return, 3),
             }
         )

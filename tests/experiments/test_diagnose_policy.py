@@ -24,6 +24,12 @@ def test_a_committed_student_is_diagnosed_against_the_oracles_plan(tmp_path, cap
         row["final_speed_rel"], row["final_speed_rpm"] / row["best_speed_rpm"] - 1, abs_tol=2e-4
     )
     assert row["oracle_damping_command"] > 0 and math.isfinite(row["oracle_return"])
+    # the path's damping is the actual D_W = g x command: the command and the ratio to D_opt follow
+    assert math.isclose(
+        row["final_damping_rel"], math.log(row["final_foil_damping"] / row["best_foil_damping"]), abs_tol=1e-3
+    )
+    ratio = row["final_damping_command"] / row["oracle_damping_command"]
+    assert math.isclose(math.log(ratio), row["final_damping_rel"], abs_tol=2e-3)
     out = tmp_path / "d.csv"
     assert main([str(POLICY), "--episodes", "1", "--out", str(out)]) == 0
     printed = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))

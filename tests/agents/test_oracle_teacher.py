@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import yaml
 from test_cli_agents import _refused
+from test_privileged_training import distill_killed_after_first_checkpoint
 
 import gfb_env.envs  # noqa: F401  (registers the ids)
 from gfb_agents import seeds
@@ -126,17 +127,7 @@ def test_the_oracles_student_takes_its_statistics_from_the_first_iteration_resum
         hyperparams=hp,
         eval_episodes=1,
     )
-    real = ts._atomic_json
-
-    def killed_after_first_checkpoint(path, obj):
-        real(path, obj)
-        if path.name == "latest.json":
-            raise RuntimeError("killed")
-
-    monkeypatch.setattr(ts, "_atomic_json", killed_after_first_checkpoint)
-    with pytest.raises(RuntimeError, match="killed"):
-        ts.distill(cfg)
-    monkeypatch.undo()
+    distill_killed_after_first_checkpoint(cfg, monkeypatch)
     out = tmp_path / "s"
     with open(out / "vecnormalize.pkl", "rb") as fh:
         vn = pickle.load(fh)

@@ -260,6 +260,24 @@ def teacher_run(tmp_path_factory) -> Path:
     return train_mod.train(cfg)
 
 
+def distill_killed_after_first_checkpoint(cfg, monkeypatch) -> None:
+    """Run ``distill(cfg)`` until its first checkpoint's pointer is written, then kill it (an exception
+    where the process would die): what a resume starts from."""
+    from gfb_agents.learned import teacher_student as ts
+
+    real = ts._atomic_json
+
+    def killed_after_first_checkpoint(path, obj):
+        real(path, obj)
+        if path.name == "latest.json":
+            raise RuntimeError("killed")
+
+    monkeypatch.setattr(ts, "_atomic_json", killed_after_first_checkpoint)
+    with pytest.raises(RuntimeError, match="killed"):
+        ts.distill(cfg)
+    monkeypatch.undo()
+
+
 def _student_yaml(tmp_path: Path, **extra) -> Path:
     hs = load_hyperparams("teacher_student", ENV)
     hs.update(n_envs=2, steps_per_iteration=32, epochs=2, batch_size=16, history=3, hidden=[8], **extra)
@@ -301,17 +319,7 @@ def test_the_student_is_distilled_by_dagger_resumes_and_deploys_from_the_observa
         hyperparams=_student_yaml(tmp_path),
         eval_episodes=1,
     )
-    real = ts._atomic_json
-
-    def killed_after_first_checkpoint(path, obj):
-        real(path, obj)
-        if path.name == "latest.json":
-            raise RuntimeError("killed")
-
-    monkeypatch.setattr(ts, "_atomic_json", killed_after_first_checkpoint)
-    with pytest.raises(RuntimeError, match="killed"):
-        ts.distill(cfg)
-    monkeypatch.undo()
+    distill_killed_after_first_checkpoint(cfg, monkeypatch)
     assert json.loads((tmp_path / "s" / "checkpoints" / "latest.json").read_text())["timesteps"] == 32
     out = ts.distill(cfg)
     meta = json.loads((out / "run.json").read_text())

@@ -90,6 +90,10 @@ learned-v2: $(STAMP)
 	$(call campaign,RunUpRandomized-v2)
 	$(call campaign,RunUp-v2)
 	$(call campaign,WhirlRecovery-v2)
+	# the student of the oracle with a damping probe first (docs/agents.md, "An oracle that probes first")
+	$(DISTILL) --algo teacher_student --teacher oracle --env gfb_env/RunUp-v2 --damping-slew $(SLEW_RunUp-v2) \
+		--hyperparams agents/hyperparams/oracle_student.yml --timesteps 307200 --seeds 0-4 \
+		--out runs/v2/RunUp-v2_oracle_probe_student_300k
 
 # the curves of whatever the campaign has trained so far (validation seeds; results/learning_curves_v2)
 learning-curves-v2: $(STAMP)

@@ -15,13 +15,16 @@ policy falls short (e.g. the oracle-taught student: an overshoot, or a damping c
 from __future__ import annotations
 
 import csv
+import json
 import math
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from gfb_env.scripting import OneLineParser, check_output_dir
 
-__all__ = ["diagnose", "main"]
+__all__ = ["diagnose", "summarise", "main"]
 
 FIELDS = (
     "seed",
@@ -90,6 +93,28 @@ def diagnose(run_dir: str | Path, env_id: str | None = None, episodes: int = 10)
     return rows
 
 
+def summarise(rows: list[dict]) -> dict:
+    """What docs/agents.md quotes of a diagnosis: successes and touchdowns, the median (and range) of the
+    final speed's relative distance below the best over the episodes that did not touch down, the
+    correlation of the logarithms of the policy's final command and the oracle's, and the mean and
+    median of |ln(D_W / D_opt)|."""
+    cmd = np.log([r["final_damping_command"] for r in rows])
+    ora = np.log([r["oracle_damping_command"] for r in rows])
+    rel = np.sort([r["final_speed_rel"] for r in rows if not r["touchdown"]])
+    dr = np.abs([r["final_damping_rel"] for r in rows])
+    return {
+        "episodes": len(rows),
+        "successes": int(sum(bool(r["success"]) for r in rows)),
+        "touchdowns": int(sum(bool(r["touchdown"]) for r in rows)),
+        "final_speed_rel_median": float(np.median(rel)) if rel.size else float("nan"),
+        "final_speed_rel_range": [float(rel[0]), float(rel[-1])] if rel.size else [],
+        "command_log_correlation": float(np.corrcoef(cmd, ora)[0, 1]) if len(rows) > 1 else float("nan"),
+        "abs_log_damping_error_mean": float(dr.mean()),
+        "abs_log_damping_error_median": float(np.median(dr)),
+        "mean_return": float(np.mean([r["return"] for r in rows])),
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = OneLineParser(prog="python -m gfb_experiments.diagnose_policy", description=__doc__.splitlines()[0])
     ap.add_argument("run_dir", help="a training run (seed<r> folder) or an exported policy folder")
@@ -113,6 +138,7 @@ def main(argv: list[str] | None = None) -> int:
     w = csv.DictWriter(sys.stdout, fieldnames=FIELDS)
     w.writeheader()
     w.writerows(rows)
+    print(json.dumps(summarise(rows)), file=sys.stderr)  # the numbers the docs quote
     if a.out is not None:
         with open(a.out, "w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=FIELDS)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from gfb_experiments.diagnose_policy import FIELDS, diagnose, main
+from gfb_experiments.diagnose_policy import FIELDS, diagnose, main, summarise
 
 POLICY = Path(__file__).resolve().parents[2] / "agents" / "policies" / "RunUpRandomized-v2_student" / "seed0"
 
@@ -47,3 +47,43 @@ def test_bad_input_is_one_line_and_exit_2(argv, fragment, capsys):
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and fragment in err[0]
+
+
+def test_the_summary_is_what_the_rows_say():
+    rows = [
+        {
+            "return": 1.0,
+            "success": True,
+            "touchdown": False,
+            "final_speed_rel": -0.01,
+            "final_damping_command": 2.0,
+            "oracle_damping_command": 1.0,
+            "final_damping_rel": math.log(2.0),
+        },
+        {
+            "return": -99.0,
+            "success": False,
+            "touchdown": True,
+            "final_speed_rel": -0.05,
+            "final_damping_command": 1.0,
+            "oracle_damping_command": 2.0,
+            "final_damping_rel": -math.log(2.0),
+        },
+        {
+            "return": 5.0,
+            "success": False,
+            "touchdown": False,
+            "final_speed_rel": -0.03,
+            "final_damping_command": 4.0,
+            "oracle_damping_command": 4.0,
+            "final_damping_rel": 0.0,
+        },
+    ]
+    s = summarise(rows)
+    assert (s["successes"], s["touchdowns"]) == (1, 1)
+    assert s["final_speed_rel_median"] == pytest.approx(-0.02) and s["final_speed_rel_range"] == [
+        -0.03,
+        -0.01,
+    ]
+    assert s["abs_log_damping_error_mean"] == pytest.approx(2 * math.log(2.0) / 3)
+    assert -1.0 <= s["command_log_correlation"] <= 1.0 and s["mean_return"] == pytest.approx(-31.0)

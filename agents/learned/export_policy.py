@@ -9,7 +9,11 @@ model -- the learning curve, and writes ``policy.json`` (algo, env id, seed, fra
 time, throughput, timesteps, best validation, which model) and a ``README.md`` stating the same.  For
 the methods trained with the privileged vector (``asymmetric_ppo``) the copy is the deployed actor alone,
 ``actor.pt`` (:class:`gfb_agents.learned.asymmetric.DeployedActor`: no critic, no optimiser state) instead
-of ``model.zip``.  Several runs land in ``<name>/seed<r>/``, so the ladder
+of ``model.zip``.  Every copied ``model.zip`` is written without optimiser state
+(:func:`strip_optimizer_state`: each ``*optimizer.pth`` keeps its parameter groups, its per-parameter
+moments are dropped), so the committed policies stay small (issue 21) and SB3's own ``PPO.load`` /
+``SAC.load`` still read them (as a fresh optimiser: fine-tuning starts its moments anew).
+Several runs land in ``<name>/seed<r>/``, so the ladder
 (:func:`gfb_agents.ladder.learned_entries`) reads them as one learned agent with one row per training
 seed.  The evaluator
 (:class:`gfb_agents.learned.evaluate.LearnedPolicy`) reads ``policy.json``.
@@ -17,14 +21,16 @@ seed.  The evaluator
 
 from __future__ import annotations
 
+import io
 import json
 import shutil
+import zipfile
 from pathlib import Path
 
 from gfb_agents.learned.evaluate import ACTOR_ONLY_ALGOS, POLICIES_DIR, TEACHER_ALGO, algo_class
 from gfb_env import jsonio
 
-__all__ = ["export_policy"]
+__all__ = ["export_policy", "strip_optimizer_state", "has_optimizer_state"]
 
 _KEYS = (
     "algo",
@@ -57,6 +63,49 @@ _KEYS = (
     "resumed_from",
     "previous_runs",
 )
+
+
+def _is_optimizer_entry(name: str) -> bool:
+    # SB3 names them after the attribute: policy.optimizer, actor.optimizer, critic.optimizer,
+    # ent_coef_optimizer
+    return name.endswith("optimizer.pth")
+
+
+def has_optimizer_state(zip_path: str | Path) -> bool:
+    """Whether an SB3 ``model.zip`` holds an optimiser's per-parameter state (its moments)."""
+    import torch as th
+
+    with zipfile.ZipFile(zip_path) as zf:
+        for name in zf.namelist():
+            if _is_optimizer_entry(name):
+                sd = th.load(io.BytesIO(zf.read(name)), map_location="cpu", weights_only=True)
+                if sd.get("state"):
+                    return True
+    return False
+
+
+def strip_optimizer_state(src: str | Path, dest: str | Path | None = None) -> Path:
+    """Write the SB3 ``model.zip`` ``src`` to ``dest`` (default: in place) with every optimiser's
+    per-parameter state (Adam's moments and step counts: about 2x the weights) removed; the parameter
+    groups (learning rate, betas) stay, so SB3's ``load`` (its exact match of the saved objects) reads
+    the file as a model with a fresh optimiser.  Everything else, the weights and ``data`` included, is
+    copied byte for byte: the policy's actions do not change."""
+    import torch as th
+
+    src = Path(src)
+    dest = src if dest is None else Path(dest)
+    out = io.BytesIO()
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zout:
+        for info in zin.infolist():
+            blob = zin.read(info.filename)
+            if _is_optimizer_entry(info.filename):
+                sd = th.load(io.BytesIO(blob), map_location="cpu", weights_only=True)
+                buf = io.BytesIO()
+                th.save({"state": {}, "param_groups": sd["param_groups"]}, buf)
+                blob = buf.getvalue()
+            zout.writestr(info, blob)
+    dest.write_bytes(out.getvalue())
+    return dest
 
 
 def _sources(run: Path, which: str) -> tuple[Path, Path]:
@@ -95,7 +144,7 @@ def _export_run(run: Path, dest: Path, name: str, which: str) -> Path:
             dest / ACTOR_FILE, {"algo": meta["algo"], "env_id": meta["env_id"], "model": which}
         )
     else:
-        shutil.copy2(src_model, dest / "model.zip")
+        strip_optimizer_state(src_model, dest / "model.zip")
     if src_vn.exists():
         shutil.copy2(src_vn, dest / "vecnormalize.pkl")
     if (run / "learning_curve.png").exists():
@@ -133,7 +182,11 @@ def _export_run(run: Path, dest: Path, name: str, which: str) -> Path:
         f"* model selection on the validation seeds: best mean return {bv.get('mean_return', '?')} at "
         f"{bv.get('timesteps', '?')} steps (see `policy.json`)",
         "* files: "
-        + ("`actor.pt` (the actor alone)" if meta["algo"] in ACTOR_ONLY_ALGOS else "`model.zip` (SB3)")
+        + (
+            "`actor.pt` (the actor alone)"
+            if meta["algo"] in ACTOR_ONLY_ALGOS
+            else "`model.zip` (SB3, without optimiser state)"
+        )
         + ", `vecnormalize.pkl` (observation statistics; load with "
         "`gfb_agents.learned.evaluate.LearnedPolicy`), `learning_curve.png`, `policy.json`",
         "* benchmark results: `results/benchmark_agents.md`",

@@ -327,6 +327,22 @@ def test_train_cli_trains_several_seeds_and_the_ladder_registers_them(tmp_path):
     exported = LearnedPolicy(dest / "seed1")
     assert json.loads((dest / "seed1" / "policy.json").read_text())["model"] == "best"
     np.testing.assert_array_equal(exported.predict(obs)[0], pol.predict(obs)[0])
+    # committed without optimiser state (issue 21: small policies); SB3's own load reads it and trains on
+    from stable_baselines3 import PPO
+
+    from gfb_agents.learned.export_policy import has_optimizer_state
+
+    run_zip, out_zip = tmp_path / "exp" / "seed1" / "best" / "model.zip", dest / "seed1" / "model.zip"
+    assert has_optimizer_state(run_zip) and not has_optimizer_state(out_zip)
+    assert out_zip.stat().st_size < 0.6 * run_zip.stat().st_size
+    sb3 = PPO.load(str(out_zip), device="cpu")
+    np.testing.assert_array_equal(
+        sb3.policy.state_dict()["action_net.weight"],
+        PPO.load(str(run_zip)).policy.state_dict()["action_net.weight"],
+    )
+    sb3.set_env(gym.make(env_id, max_episode_steps=8))
+    sb3.learn(sb3.n_steps)  # a fresh optimiser: its moments start anew
+    assert sb3.num_timesteps >= sb3.n_steps
     # the benchmark plays both training seeds of the --learned folder on the same seeds as the ladder
     from gfb_experiments.benchmark_agents import main as bench_main
 

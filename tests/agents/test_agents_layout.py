@@ -125,3 +125,16 @@ def test_margin_search_memory_is_typed_and_its_modes_dispatch_one_method_each(mo
 def test_operating_point_config_refuses_bad_fields_by_name(kwargs, field):
     with pytest.raises(ValueError, match=field):
         OperatingPointConfig(**kwargs)
+
+
+def test_committed_policies_carry_no_optimiser_state():
+    """Issue 21: the committed policies stay small: no model.zip holds an optimiser's moments (what
+    export_policy strips), and no folder holds a checkpoint or a replay buffer."""
+    from gfb_agents.learned.evaluate import POLICIES_DIR
+    from gfb_agents.learned.export_policy import has_optimizer_state
+
+    zips = sorted(POLICIES_DIR.rglob("model.zip"))
+    assert zips, POLICIES_DIR
+    assert [z for z in zips if has_optimizer_state(z)] == []
+    allowed = {"model.zip", "actor.pt", "vecnormalize.pkl", "policy.json", "README.md", "learning_curve.png"}
+    assert sorted({p.name for p in POLICIES_DIR.rglob("*") if p.is_file()} - allowed) == []

@@ -28,6 +28,9 @@ def test_a_committed_student_is_diagnosed_against_the_oracles_plan(tmp_path, cap
     assert math.isclose(
         row["final_damping_rel"], math.log(row["final_foil_damping"] / row["best_foil_damping"]), abs_tol=1e-3
     )
+    # reversals: sign changes of the damping path's moves, at most one per step; the oracle's plan has few
+    assert 0 <= row["damping_reversals"] <= row["steps"] - 2
+    assert 0 <= row["oracle_damping_reversals"] <= 3 and row["oracle_steps"] >= 1
     ratio = row["final_damping_command"] / row["oracle_damping_command"]
     assert math.isclose(math.log(ratio), row["final_damping_rel"], abs_tol=2e-3)
     out = tmp_path / "d.csv"
@@ -47,6 +50,16 @@ def test_bad_input_is_one_line_and_exit_2(argv, fragment, capsys):
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and fragment in err[0]
+
+
+def test_reversals_count_the_turns_of_the_damping_path_and_skip_holds():
+    from gfb_experiments.diagnose_policy import damping_reversals
+
+    assert damping_reversals([1.0, 1.0, 1.0]) == 0
+    assert damping_reversals([1.0, 2.0, 3.0, 3.0, 4.0]) == 0  # a hold is not a turn
+    assert damping_reversals([1.0, 2.0, 1.0, 2.0, 1.0]) == 3  # a dither at every step
+    assert damping_reversals([1.0, 2.0, 2.0, 1.5, 1.5, 3.0]) == 2  # up, (hold), down, (hold), up
+    assert damping_reversals([2.0]) == 0 and damping_reversals([]) == 0
 
 
 def test_the_summary_is_what_the_rows_say():
@@ -87,3 +100,9 @@ def test_the_summary_is_what_the_rows_say():
     ]
     assert s["abs_log_damping_error_mean"] == pytest.approx(2 * math.log(2.0) / 3)
     assert -1.0 <= s["command_log_correlation"] <= 1.0 and s["mean_return"] == pytest.approx(-31.0)
+    assert math.isnan(s["damping_reversals_per_100_steps"])  # rows without the counts
+    for r, (k, ko, n, no) in zip(rows, [(10, 1, 250, 250), (4, 0, 50, 250), (6, 2, 200, 250)], strict=True):
+        r.update(damping_reversals=k, oracle_damping_reversals=ko, steps=n, oracle_steps=no)
+    s = summarise(rows)
+    assert s["damping_reversals_per_100_steps"] == pytest.approx(100 * 20 / 500)
+    assert s["oracle_damping_reversals_per_100_steps"] == pytest.approx(100 * 3 / 750)

@@ -20,6 +20,7 @@ import json
 import math
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -86,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--gain must be a positive number, got {a.gain}")
     if a.out is not None:
         try:
-            check_output_dir(str(__import__("pathlib").Path(a.out).parent), "--out")
+            check_output_dir(str(Path(a.out).parent), "--out")
         except ValueError as exc:
             ap.error(str(exc))
     from gfb_env.envs import make_env
